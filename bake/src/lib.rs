@@ -1,0 +1,4 @@
+//! otbake: bake optimal-transport maps of appearance assets.
+pub mod input;
+pub mod sample;
+pub mod solve;

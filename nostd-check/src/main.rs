@@ -1,0 +1,2 @@
+//! (to be written by the runtime work)
+fn main() {}

@@ -1,0 +1,3 @@
+//! otbake runtime (to be written).
+#![no_std]
+#![forbid(unsafe_code)]
