@@ -1,4 +1,23 @@
-//! otbake: bake optimal-transport maps of appearance assets.
+//! otbake: bake optimal-transport maps of appearance assets into zero-copy archives.
+//!
+//! A bake reads a [`manifest::Manifest`], importance-samples every input ([`input`], [`sample`]) and
+//! a shared [`proxy`], orders the proxy into the implicit query tree ([`tree`]), solves a transport map
+//! from the proxy to each input ([`solve`]), and writes one proxy archive and one map archive per
+//! input ([`archive`], [`bake`]). The runtime crate `otbake-runtime` blends those archives; this crate
+//! uses it for its own images ([`render`]).
+pub mod archive;
+pub mod bake;
+pub mod error;
+pub mod fsio;
+pub mod imageio;
 pub mod input;
+pub mod inspect;
+pub mod key;
+pub mod manifest;
+pub mod npy;
+pub mod points;
+pub mod proxy;
+pub mod render;
 pub mod sample;
 pub mod solve;
+pub mod tree;

@@ -1,0 +1,134 @@
+//! Turning baked data into archive bytes, and recognizing archives already on disk.
+
+use otbake_formats::map::Map;
+use otbake_formats::proxy::Proxy;
+use otbake_formats::tree::{depth, fill_node_boxes, fill_node_sums, node_count};
+use otbake_formats::write::{encode_map, encode_proxy, WriteError};
+use otbake_formats::{Composite, COLOR_CHANNELS};
+use rkyv::util::AlignedVec;
+use std::path::Path;
+
+/// A baked proxy: points already in tree order.
+#[derive(Debug, Clone)]
+pub struct ProxyData {
+    /// Content key.
+    pub key: [u8; 32],
+    /// Dimension.
+    pub dim: usize,
+    /// Leaf size of the tree.
+    pub leaf_size: u32,
+    /// `n * dim`, tree order.
+    pub positions: Vec<f32>,
+    /// Settings, human readable.
+    pub description: String,
+}
+
+impl ProxyData {
+    /// Number of points.
+    pub fn n(&self) -> usize {
+        self.positions.len() / self.dim
+    }
+
+    /// Archive bytes.
+    pub fn encode(&self) -> Result<AlignedVec<16>, WriteError> {
+        let n = self.n() as u32;
+        let d = depth(n, self.leaf_size);
+        let mut boxes = vec![0.0; node_count(d) as usize * 2 * self.dim];
+        fill_node_boxes(&self.positions, self.dim, d, &mut boxes);
+        encode_proxy(&Proxy {
+            dim: self.dim as u32,
+            n,
+            leaf_size: self.leaf_size,
+            depth: d,
+            key: self.key,
+            description: &self.description,
+            positions: &self.positions,
+            node_boxes: &boxes,
+        })
+    }
+}
+
+/// A baked map, aligned with its proxy's tree order.
+#[derive(Debug, Clone)]
+pub struct MapData {
+    /// Input name.
+    pub name: String,
+    /// Content key.
+    pub key: [u8; 32],
+    /// Key of the proxy.
+    pub proxy_key: [u8; 32],
+    /// Dimension.
+    pub dim: usize,
+    /// Leaf size of the proxy's tree.
+    pub leaf_size: u32,
+    /// Display rule.
+    pub composite: Composite,
+    /// Mean of the input's mass channel.
+    pub mean_mass: f32,
+    /// `n * dim` mapped positions.
+    pub positions: Vec<f32>,
+    /// `n * 3` color ratios or empty.
+    pub colors: Vec<f32>,
+    /// Solver report line.
+    pub solver_report: String,
+    /// Mean squared displacement.
+    pub transport_cost: f64,
+}
+
+impl MapData {
+    /// Archive bytes.
+    pub fn encode(&self) -> Result<AlignedVec<16>, WriteError> {
+        let n = (self.positions.len() / self.dim) as u32;
+        let d = depth(n, self.leaf_size);
+        let nodes = node_count(d) as usize;
+        let mut boxes = vec![0.0; nodes * 2 * self.dim];
+        fill_node_boxes(&self.positions, self.dim, d, &mut boxes);
+        let mut sums = Vec::new();
+        if !self.colors.is_empty() {
+            sums = vec![0.0; nodes * COLOR_CHANNELS];
+            fill_node_sums(&self.colors, COLOR_CHANNELS, d, &mut sums);
+        }
+        encode_map(&Map {
+            dim: self.dim as u32,
+            n,
+            depth: d,
+            proxy_key: self.proxy_key,
+            key: self.key,
+            name: &self.name,
+            composite: self.composite as u32,
+            mean_mass: self.mean_mass,
+            positions: &self.positions,
+            colors: &self.colors,
+            node_boxes: &boxes,
+            node_colors: &sums,
+            solver_report: &self.solver_report,
+            transport_cost: self.transport_cost,
+        })
+    }
+}
+
+/// Key of a valid proxy archive at `path`, or `None` when it is missing or damaged (then it is
+/// rebuilt: a damaged output is never trusted).
+pub fn proxy_key_on_disk(path: &Path) -> Option<[u8; 32]> {
+    let bytes = crate::fsio::read_aligned(path).ok()?;
+    otbake_formats::open::open_proxy(&bytes).ok().map(|p| p.key)
+}
+
+/// Key of a valid map archive at `path`, or `None`.
+pub fn map_key_on_disk(path: &Path) -> Option<[u8; 32]> {
+    let bytes = crate::fsio::read_aligned(path).ok()?;
+    otbake_formats::open::open_map(&bytes).ok().map(|m| m.key)
+}
+
+/// Tree-order positions of a valid proxy archive whose key is `key`.
+pub fn load_proxy_positions(path: &Path, key: &[u8; 32]) -> Option<ProxyData> {
+    let bytes = crate::fsio::read_aligned(path).ok()?;
+    let p = otbake_formats::open::open_proxy(&bytes).ok()?;
+    (p.key == *key).then(|| ProxyData {
+        key: p.key,
+        dim: p.dim.to_native() as usize,
+        leaf_size: p.leaf_size.to_native(),
+        positions: p.positions.iter().map(|v| v.to_native()).collect(),
+        description: p.description.to_string(),
+    })
+}

@@ -1,0 +1,34 @@
+//! `otbake points`: a map as a plain matrix for analysis outside otbake.
+
+use crate::fsio::read_aligned;
+use crate::manifest::Manifest;
+use crate::render::RenderError;
+use otbake_runtime::{Map, Proxy};
+
+/// `.npy` bytes of an `n × 2d` float32 matrix: row i is proxy point i then its image under the map
+/// of input `name`, in tree order.
+pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
+    let pbytes = read_aligned(&m.proxy_archive())?;
+    let mbytes = read_aligned(&m.map_archive(name))?;
+    let err = |context: &str| {
+        let context = context.to_string();
+        move |source| RenderError::Runtime { context, source }
+    };
+    let proxy = Proxy::open(&pbytes).map_err(err("proxy archive"))?;
+    let map = Map::open(&mbytes).map_err(err("map archive"))?;
+    if map.proxy_key() != proxy.key() {
+        return Err(RenderError::Runtime {
+            context: format!("map of {name:?}"),
+            source: otbake_runtime::Error::ProxyMismatch { map: 0 },
+        });
+    }
+    let (p, q) = (proxy.archived(), map.archived());
+    let d = proxy.dim();
+    let n = proxy.n() as usize;
+    let mut data = Vec::with_capacity(n * 2 * d);
+    for i in 0..n {
+        data.extend(p.positions[i * d..(i + 1) * d].iter().map(|v| v.to_native()));
+        data.extend(q.positions[i * d..(i + 1) * d].iter().map(|v| v.to_native()));
+    }
+    Ok(crate::npy::encode_f32(n, 2 * d, &data))
+}

@@ -1,0 +1,257 @@
+//! Rendering 2D blends to images through the runtime: per-pixel point queries or one splat, then
+//! the inputs' composite rule. Everything here goes through `otbake-runtime`, exactly as an engine
+//! would, so the images are a test of the runtime too.
+
+use crate::fsio::{read_aligned, IoError};
+use crate::imageio::Rgba;
+use crate::manifest::Manifest;
+use otbake_formats::Composite;
+use otbake_runtime::{Blend, Kernel, Map, Proxy, SplatTarget, MAX_DIM};
+use rayon::prelude::*;
+use rkyv::util::AlignedVec;
+
+/// How an image is reconstructed from the blended points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// One Gaussian point query per pixel (what a renderer's texture lookup does).
+    Query,
+    /// Splat every blended point into the image once (fastest for whole images).
+    Splat,
+}
+
+/// Image size, method and kernel width.
+#[derive(Debug, Clone, Copy)]
+pub struct RenderSettings {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Reconstruction method.
+    pub method: Method,
+    /// Kernel standard deviation in pixels of the larger image side.
+    pub sigma_px: f32,
+}
+
+/// Why a blend could not be rendered.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// An archive could not be read.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// An archive or the query was refused by the runtime.
+    #[error("{context}: {source}")]
+    Runtime {
+        /// Which archive or query.
+        context: String,
+        /// Why.
+        #[source]
+        source: otbake_runtime::Error,
+    },
+    /// The blend is not an image.
+    #[error("the manifest's inputs are {0}-dimensional; images need 2D inputs (use the volume or BRDF commands)")]
+    NotAnImage(usize),
+    /// Bad grid request.
+    #[error("{0}")]
+    Grid(String),
+}
+
+/// Archive bytes of a manifest's proxy and maps, loaded once and opened as often as needed.
+pub struct Archives {
+    proxy: AlignedVec<16>,
+    maps: Vec<(String, AlignedVec<16>)>,
+}
+
+impl Archives {
+    /// Reads the proxy and every map of a (baked) manifest.
+    pub fn load(m: &Manifest) -> Result<Self, RenderError> {
+        let proxy = read_aligned(&m.proxy_archive())?;
+        let maps = m
+            .inputs
+            .iter()
+            .map(|i| Ok((i.name.clone(), read_aligned(&m.map_archive(&i.name))?)))
+            .collect::<Result<_, IoError>>()?;
+        Ok(Self { proxy, maps })
+    }
+
+    /// Opens the proxy (validated).
+    pub fn proxy(&self) -> Result<Proxy<'_>, RenderError> {
+        Proxy::open(&self.proxy).map_err(|source| RenderError::Runtime {
+            context: "proxy archive".into(),
+            source,
+        })
+    }
+
+    /// Opens every map (validated), in manifest order.
+    pub fn maps(&self) -> Result<Vec<Map<'_>>, RenderError> {
+        self.maps
+            .iter()
+            .map(|(name, bytes)| {
+                Map::open(bytes).map_err(|source| RenderError::Runtime {
+                    context: format!("map archive of input {name:?}"),
+                    source,
+                })
+            })
+            .collect()
+    }
+}
+
+fn runtime(context: &str) -> impl FnOnce(otbake_runtime::Error) -> RenderError + '_ {
+    move |source| RenderError::Runtime {
+        context: context.to_string(),
+        source,
+    }
+}
+
+/// The display rule shared by all maps (additive if they disagree).
+fn composite(maps: &[Map<'_>]) -> Composite {
+    let first = maps.first().map_or(Composite::Additive, |m| m.composite());
+    if maps.iter().all(|m| m.composite() == first) {
+        first
+    } else {
+        Composite::Additive
+    }
+}
+
+/// One pixel from blended mass and premultiplied color.
+fn shade(rule: Composite, mass: f32, color: [f32; 3]) -> [f32; 4] {
+    match rule {
+        Composite::Additive => [color[0], color[1], color[2], 1.0],
+        Composite::Alpha => {
+            let a = mass.clamp(0.0, 1.0);
+            let inv = if mass > 0.0 { 1.0 / mass } else { 0.0 };
+            [color[0] * inv, color[1] * inv, color[2] * inv, a]
+        }
+        Composite::InkOnWhite => {
+            let bg = 1.0 - mass.clamp(0.0, 1.0);
+            [color[0] + bg, color[1] + bg, color[2] + bg, 1.0]
+        }
+    }
+}
+
+/// Renders the blend of `maps` for `weights` as an image.
+pub fn render(proxy: Proxy<'_>, maps: &[Map<'_>], weights: &[f32], s: &RenderSettings) -> Result<Rgba, RenderError> {
+    if proxy.dim() != 2 {
+        return Err(RenderError::NotAnImage(proxy.dim()));
+    }
+    let blend = Blend::new(proxy, maps).map_err(runtime("maps"))?;
+    blend.check_weights(weights).map_err(runtime("--weights"))?;
+    let rule = composite(maps);
+    let (w, h) = (s.width, s.height);
+    let kernel = Kernel {
+        sigma: s.sigma_px / w.max(h) as f32,
+    };
+    let mut img = Rgba::filled(w, h, [0.0; 4]);
+    match s.method {
+        Method::Query => {
+            img.pixels
+                .par_chunks_mut(w * 4)
+                .enumerate()
+                .try_for_each(|(y, row)| -> Result<(), otbake_runtime::Error> {
+                    for x in 0..w {
+                        let p = [(x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32];
+                        let v = blend.point(weights, &p, kernel)?;
+                        row[x * 4..x * 4 + 4].copy_from_slice(&shade(rule, v.mass, v.color));
+                    }
+                    Ok(())
+                })
+                .map_err(runtime("point query"))?;
+        }
+        Method::Splat => {
+            let mut density = vec![0.0f32; w * h];
+            let mut color = vec![0.0f32; w * h * 3];
+            let mut res = [1u32; MAX_DIM];
+            res[0] = w as u32;
+            res[1] = h as u32;
+            let has_color = blend.has_color();
+            blend
+                .splat(
+                    weights,
+                    kernel,
+                    SplatTarget {
+                        res,
+                        density: &mut density,
+                        color: if has_color { Some(&mut color) } else { None },
+                    },
+                )
+                .map_err(runtime("splat"))?;
+            let mean_mass: f32 = maps.iter().zip(weights).map(|(m, w)| m.mean_mass() * w).sum();
+            for (i, px) in img.pixels.chunks_exact_mut(4).enumerate() {
+                let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
+                px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
+            }
+        }
+    }
+    Ok(img)
+}
+
+/// Cell position (column, row) and weights of every cell of a blend grid of `k` inputs.
+///
+/// * 2 inputs: one row of `steps` cells from input 0 to input 1;
+/// * 3 inputs: a triangle of `steps` rows (input 0 at the top, 1 bottom left, 2 bottom right);
+/// * 4 inputs: a `steps × steps` square with bilinear corner weights (input 0 top left, 1 top right,
+///   2 bottom left, 3 bottom right), as in the paper's Fig. 7.
+///
+/// Returns the cells and the grid size in cells.
+#[allow(clippy::type_complexity)]
+pub fn grid_cells(k: usize, steps: usize) -> Result<(Vec<(usize, usize, Vec<f32>)>, (usize, usize)), RenderError> {
+    if steps < 2 {
+        return Err(RenderError::Grid(format!("--steps {steps}: use at least 2")));
+    }
+    let t = |i: usize| i as f32 / (steps - 1) as f32;
+    let mut cells = Vec::new();
+    match k {
+        2 => {
+            for c in 0..steps {
+                cells.push((c, 0, vec![1.0 - t(c), t(c)]));
+            }
+            Ok((cells, (steps, 1)))
+        }
+        3 => {
+            // Row r holds r + 1 cells; cell j of row r has barycentric weights
+            // (steps-1-r, r-j, j) / (steps-1), centred by an offset of half a cell per missing cell.
+            for r in 0..steps {
+                for j in 0..=r {
+                    let w = [
+                        (steps - 1 - r) as f32 / (steps - 1) as f32,
+                        (r - j) as f32 / (steps - 1) as f32,
+                        j as f32 / (steps - 1) as f32,
+                    ];
+                    // Columns are doubled so that half-cell offsets stay integral.
+                    cells.push((steps - 1 - r + 2 * j, r, w.to_vec()));
+                }
+            }
+            Ok((cells, (2 * steps - 1, steps)))
+        }
+        4 => {
+            for r in 0..steps {
+                for c in 0..steps {
+                    let (u, v) = (t(c), t(r));
+                    cells.push((c, r, vec![(1.0 - u) * (1.0 - v), u * (1.0 - v), (1.0 - u) * v, u * v]));
+                }
+            }
+            Ok((cells, (steps, steps)))
+        }
+        _ => Err(RenderError::Grid(format!(
+            "the manifest has {k} inputs; `grid` lays out 2 (row), 3 (triangle) or 4 (square) inputs — use `blend` for other counts"
+        ))),
+    }
+}
+
+/// Renders the whole grid of blends as one image.
+pub fn render_grid(archives: &Archives, steps: usize, s: &RenderSettings) -> Result<Rgba, RenderError> {
+    let maps = archives.maps()?;
+    let (cells, (cols, rows)) = grid_cells(maps.len(), steps)?;
+    let triangle = maps.len() == 3;
+    // Triangle columns are in half cells.
+    let cell_w = if triangle { s.width / 2 } else { s.width };
+    let bg = match composite(&maps) {
+        Composite::InkOnWhite => [1.0, 1.0, 1.0, 1.0],
+        _ => [0.0, 0.0, 0.0, 1.0],
+    };
+    let mut out = Rgba::filled(cols * cell_w + if triangle { s.width - cell_w } else { 0 }, rows * s.height, bg);
+    for (c, r, w) in cells {
+        let img = render(archives.proxy()?, &maps, &w, s)?;
+        out.blit(&img, c * cell_w, r * s.height);
+    }
+    Ok(out)
+}
