@@ -1,1 +1,2 @@
-//! (to be written)
+//! Low-discrepancy sampling: an Owen-scrambled Sobol sequence and importance sampling of density
+//! grids by its points (paper §5.1).
