@@ -161,6 +161,27 @@ mod tests {
     }
 
     #[test]
+    fn density_channel_names_deserialize() {
+        #[derive(serde::Deserialize)]
+        struct Input {
+            #[serde(default)]
+            density: crate::input::DensityChannel,
+        }
+        use crate::input::DensityChannel as D;
+        for (text, want) in [
+            ("density = \"luminance\"", D::Luminance),
+            ("density = \"inverted\"", D::Inverted),
+            ("density = \"alpha\"", D::Alpha),
+            ("", D::Luminance),
+        ] {
+            let got: Input = toml::from_str(text).unwrap();
+            assert_eq!(got.density, want, "{text}");
+            assert_eq!(want.to_string(), want.name());
+        }
+        assert!(toml::from_str::<Input>("density = \"Inverted\"").is_err());
+    }
+
+    #[test]
     fn sizes_mean_and_ratio_lookup() {
         // 3 x 2 grid, axis 0 fastest: cell (x, y) at x + 3 y.
         let ratio: Vec<[f32; 3]> = (0..6).map(|i| [i as f32, 0.0, 0.0]).collect();

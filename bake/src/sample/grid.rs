@@ -384,6 +384,33 @@ mod tests {
         }
     }
 
+    /// A real shape: every point lands on ink, and the points' cells are the heavy ones.
+    #[test]
+    fn samples_a_real_shape_on_its_ink() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../shared/data/shapes/duck.png");
+        let path = if path.exists() {
+            path
+        } else {
+            std::path::PathBuf::from("/work/shared/data/shapes/duck.png")
+        };
+        let grid = crate::input::load_image(&path, crate::input::DensityChannel::Inverted).unwrap();
+        let n = 1 << 13;
+        let pts = importance_sample(&grid, n, 3).unwrap();
+        let c = counts(&grid, &pts);
+        assert!(grid.mass.iter().zip(&c).all(|(&m, &k)| m > 0.0 || k == 0));
+        let (stat, df) = chi_square(&grid, &c, n);
+        assert!(stat < df as f64, "χ² {stat} over {df} dof");
+        let at_points: f64 = c
+            .iter()
+            .zip(&grid.mass)
+            .map(|(&k, &m)| k as f64 * f64::from(m))
+            .sum();
+        // E_p[mass] = Σ m² / Σ m >= mean mass, with equality only for flat images.
+        assert!(at_points / n as f64 > 1.5 * grid.mean_mass());
+        check_moments(&grid, &pts, 1e-3);
+    }
+
     #[test]
     fn bad_requests_are_errors() {
         let grid = random_grid(&[4, 4], 6);
