@@ -1,1 +1,129 @@
-//! (to be written)
+//! Inputs: asset files turned into densities on regular grids over the unit hypercube.
+//!
+//! # Axis and cell conventions (the one place they are written down)
+//!
+//! Every input lives in `[0,1]^d`. A [`Grid`] with `dims = [n0, n1, …]` splits axis `k` into `n_k`
+//! equal cells; cell `(i0, i1, …)` covers `[i0/n0, (i0+1)/n0] × [i1/n1, (i1+1)/n1] × …` and is stored at
+//! buffer index `i0 + n0·(i1 + n1·(i2 + …))`: **axis 0 varies fastest**. A point `p` belongs to the cell
+//! `floor(p_k · n_k)` on every axis (evaluated in `f64`, clamped to the grid).
+//!
+//! Images: axis 0 = x (column, left to right), axis 1 = y (row, **top to bottom**), so cell `(x, y)`
+//! covers `[x/W, (x+1)/W] × [y/H, (y+1)/H]` and the grid buffer is the image in its natural row-major
+//! order. Volumes and BRDF grids follow the same rule with their own axes (x fastest).
+//!
+//! # Density and color
+//!
+//! Pixels are decoded to linear RGB plus a linear alpha (see [`load_image`]); `Y = 0.2126 R +
+//! 0.7152 G + 0.0722 B`. The [`DensityChannel`] turns a pixel into a mass and a color-to-mass ratio:
+//!
+//! | channel     | mass                    | ratio                 | meaning                              |
+//! |-------------|-------------------------|-----------------------|--------------------------------------|
+//! | `luminance` | `Y · alpha`             | `rgb / Y` (0 if Y = 0)| displayed color = mass · ratio        |
+//! | `inverted`  | `max(0, 1 − Y) · alpha` | `rgb` (straight)      | dark ink on white; composited later  |
+//! | `alpha`     | `alpha`                 | `rgb` (straight)      | cut-outs                             |
+//!
+//! Masses are not normalized here: the sampler normalizes, and [`Grid::mean_mass`] keeps the scale
+//! that the run-time needs to put the luminance back (paper §6.4).
+
+mod grid;
+mod image;
+
+pub use self::image::{load_image, srgb_to_linear};
+pub use grid::Grid;
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Which quantity of a pixel is the density (see the table in the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DensityChannel {
+    /// `mass = Y · alpha`, `ratio = rgb / Y`.
+    #[default]
+    Luminance,
+    /// `mass = max(0, 1 − Y) · alpha`, `ratio = rgb`: dark shapes on a white background.
+    Inverted,
+    /// `mass = alpha`, `ratio = rgb`.
+    Alpha,
+}
+
+impl DensityChannel {
+    /// The name used in manifests (`luminance`, `inverted`, `alpha`).
+    pub fn name(self) -> &'static str {
+        match self {
+            DensityChannel::Luminance => "luminance",
+            DensityChannel::Inverted => "inverted",
+            DensityChannel::Alpha => "alpha",
+        }
+    }
+}
+
+impl fmt::Display for DensityChannel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Why an input could not be turned into a density grid. Messages name the file (and the pixel
+/// where one is at fault) and say how to fix it.
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    #[error("input file {} does not exist: check the path (relative paths are resolved from the manifest's folder)", path.display())]
+    NotFound { path: PathBuf },
+
+    #[error("cannot read input file {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+
+    #[error("input file {} has an unsupported extension {ext:?}: supported image files are .png, .jpg, .jpeg and .exr (convert the file to one of them)", path.display())]
+    UnsupportedExtension { path: PathBuf, ext: String },
+
+    #[error("cannot decode image {}: {message}; re-export it as an ordinary 8- or 16-bit PNG or a baseline JPEG", path.display())]
+    Decode { path: PathBuf, message: String },
+
+    #[error("cannot read OpenEXR image {}: {message}; the first layer needs R, G and B channels (A optional) — re-export it as a scanline RGBA EXR", path.display())]
+    Exr { path: PathBuf, message: String },
+
+    #[error("image {} is empty ({width}x{height} pixels): give an image with at least one pixel", path.display())]
+    EmptyImage {
+        path: PathBuf,
+        width: usize,
+        height: usize,
+    },
+
+    #[error("image {}: pixel (x {x}, y {y}) channel {channel} is {value}: EXR inputs must be finite and non-negative; replace NaN, infinite and negative values (e.g. by 0) and re-export", path.display())]
+    BadPixel {
+        path: PathBuf,
+        x: usize,
+        y: usize,
+        channel: &'static str,
+        value: f32,
+    },
+
+    #[error("the density channel `{channel}` of {} is zero everywhere: choose another `density`", path.display())]
+    NoMass {
+        path: PathBuf,
+        channel: DensityChannel,
+    },
+
+    #[error("image {} gives an invalid density: {message}; rescale the image's values", path.display())]
+    InvalidDensity { path: PathBuf, message: String },
+
+    #[error("invalid density grid: {0}")]
+    GridShape(String),
+
+    #[error(
+        "invalid density grid: cell {index} has {what} {value}: values must be finite and >= 0"
+    )]
+    GridValue {
+        index: usize,
+        what: &'static str,
+        value: f32,
+    },
+
+    #[error("invalid density grid: the total mass is zero (every cell is 0): give a grid with some mass")]
+    GridNoMass,
+}
