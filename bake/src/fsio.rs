@@ -17,7 +17,7 @@ pub struct IoError {
     pub source: std::io::Error,
 }
 
-fn io(action: &'static str, path: &Path) -> impl FnOnce(std::io::Error) -> IoError + '_ {
+fn io<'a>(action: &'static str, path: &'a Path) -> impl FnOnce(std::io::Error) -> IoError + 'a {
     move |source| IoError {
         action,
         path: path.to_path_buf(),

@@ -42,8 +42,13 @@ pub enum ImageWriteError {
     #[error("cannot write {}: unsupported image extension, use .png or .exr", .0.display())]
     Extension(PathBuf),
     /// Encoding failed.
-    #[error("cannot encode {}: {1}", .0.display())]
-    Encode(PathBuf, String),
+    #[error("cannot encode {}: {message}", path.display())]
+    Encode {
+        /// Output path.
+        path: PathBuf,
+        /// Encoder message.
+        message: String,
+    },
     /// Writing failed.
     #[error(transparent)]
     Io(#[from] IoError),
@@ -64,10 +69,14 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 pub fn write_image(path: &Path, img: &Rgba) -> Result<(), ImageWriteError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let bytes = match ext.as_deref() {
-        Some("png") => encode_png(img).map_err(|e| ImageWriteError::Encode(path.to_path_buf(), e))?,
-        Some("exr") => encode_exr(img).map_err(|e| ImageWriteError::Encode(path.to_path_buf(), e))?,
+        Some("png") => encode_png(img),
+        Some("exr") => encode_exr(img),
         _ => return Err(ImageWriteError::Extension(path.to_path_buf())),
-    };
+    }
+    .map_err(|message| ImageWriteError::Encode {
+        path: path.to_path_buf(),
+        message,
+    })?;
     write_atomic(path, &bytes)?;
     Ok(())
 }

@@ -25,7 +25,7 @@ pub fn payload(bytes: &[u8], expected: ArchiveKind) -> Result<(Header, &[u8]), F
             actual: rest.len(),
         });
     }
-    if (rest.as_ptr() as usize) % ALIGN != 0 {
+    if !(rest.as_ptr() as usize).is_multiple_of(ALIGN) {
         return Err(FormatError::Misaligned);
     }
     if blake3::hash(rest).as_bytes() != &header.checksum {
