@@ -129,7 +129,7 @@ fn shade(rule: Composite, mass: f32, color: [f32; 3]) -> [f32; 4] {
 }
 
 /// Renders the blend of `maps` for `weights` as an image.
-pub fn render(proxy: Proxy<'_>, maps: &[Map<'_>], weights: &[f32], s: &RenderSettings) -> Result<Rgba, RenderError> {
+pub fn render<'a>(proxy: Proxy<'a>, maps: &[Map<'a>], weights: &[f32], s: &RenderSettings) -> Result<Rgba, RenderError> {
     if proxy.dim() != 2 {
         return Err(RenderError::NotAnImage(proxy.dim()));
     }

@@ -39,6 +39,8 @@ pub mod tree;
 pub mod write;
 
 pub use error::FormatError;
+/// The rkyv version the archives are written with (readers name archived types through it).
+pub use rkyv;
 
 /// First eight bytes of every archive.
 pub const MAGIC: [u8; 8] = *b"OTBAKE\0\x01";

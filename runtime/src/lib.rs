@@ -1,3 +1,64 @@
-//! otbake runtime (to be written).
+//! otbake runtime: blend baked optimal-transport maps at run time.
+//!
+//! Open a proxy archive and the map archives of k inputs (any 16-byte aligned bytes: an mmap, an
+//! `include_bytes!` in an aligned wrapper, an `AlignedVec`), then ask a [`Blend`] for point queries
+//! (density and color under a Gaussian kernel), range queries (mass and color integrals over a box),
+//! barycenter samples, or a splat of the whole blend — for any non-negative weights summing to 1,
+//! passed on every call so they may change from one query point to the next.
+//!
+//! The crate is `#![no_std]`, never allocates, contains no `unsafe`, and returns an error (never
+//! panics) for any archive bytes, weights or coordinates.
+//!
+//! ```
+//! # use otbake_formats::{map::Map as MapData, proxy::Proxy as ProxyData, tree, write};
+//! # fn archives() -> (rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>) {
+//! #     let pos = [0.25f32, 0.25, 0.75, 0.75];
+//! #     let d = tree::depth(2, 1);
+//! #     let mut boxes = vec![0.0; tree::node_count(d) as usize * 4];
+//! #     tree::fill_node_boxes(&pos, 2, d, &mut boxes);
+//! #     let p = write::encode_proxy(&ProxyData { dim: 2, n: 2, leaf_size: 1, depth: d, key: [1; 32],
+//! #         description: "", positions: &pos, node_boxes: &boxes }).unwrap();
+//! #     let map = |pos: &[f32]| {
+//! #         let mut b = vec![0.0; tree::node_count(d) as usize * 4];
+//! #         tree::fill_node_boxes(pos, 2, d, &mut b);
+//! #         write::encode_map(&MapData { dim: 2, n: 2, depth: d, proxy_key: [1; 32], key: [2; 32], name: "m",
+//! #             composite: 0, mean_mass: 0.5, positions: pos, colors: &[], node_boxes: &b, node_colors: &[],
+//! #             solver_report: "", transport_cost: 0.0 }).unwrap()
+//! #     };
+//! #     (p, map(&[0.1, 0.1, 0.3, 0.3]), map(&[0.5, 0.5, 0.9, 0.9]))
+//! # }
+//! use otbake_runtime::{Blend, Kernel, Map, Proxy};
+//! let (proxy_bytes, a_bytes, b_bytes) = archives();
+//! let maps = [Map::open(&a_bytes)?, Map::open(&b_bytes)?];
+//! let blend = Blend::new(Proxy::open(&proxy_bytes)?, &maps)?;
+//! // Halfway between the inputs, the first point sits at (0.3, 0.3) ...
+//! let s = blend.sample(&[0.5, 0.5], 0)?;
+//! assert!((s.position[0] - 0.3).abs() < 1e-6);
+//! // ... so a range query around it finds it, and a point query there sees mass.
+//! assert_eq!(blend.range(&[0.5, 0.5], &[0.25, 0.25], &[0.35, 0.35])?.count, 1);
+//! assert!(blend.point(&[0.5, 0.5], &[0.3, 0.3], Kernel { sigma: 0.01 })?.density > 0.0);
+//! // Weights are checked on every call.
+//! assert!(blend.point(&[0.7, 0.7], &[0.3, 0.3], Kernel { sigma: 0.01 }).is_err());
+//! # Ok::<(), otbake_runtime::Error>(())
+//! ```
 #![no_std]
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+mod archive;
+mod blend;
+mod error;
+mod kernel;
+mod point;
+mod range;
+mod splat;
+mod stack;
+
+pub use archive::{Map, Proxy};
+pub use blend::{Blend, Sample};
+pub use error::Error;
+pub use kernel::Kernel;
+pub use otbake_formats::{Composite, MAX_DIM};
+pub use point::PointValue;
+pub use range::RangeValue;
+pub use splat::SplatTarget;

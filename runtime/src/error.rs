@@ -1,0 +1,108 @@
+//! The runtime's one error type.
+
+use core::fmt;
+use otbake_formats::FormatError;
+
+/// Why a runtime call was refused. Every message says what to change.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Error {
+    /// Archive bytes were refused.
+    Format(FormatError),
+    /// Map `map` was baked against another proxy.
+    ProxyMismatch {
+        /// Index of the map in the slice given to `Blend::new`.
+        map: usize,
+    },
+    /// Map `map` disagrees with the proxy on `field` (dim, n or depth).
+    ShapeMismatch {
+        /// Index of the map.
+        map: usize,
+        /// Which size.
+        field: &'static str,
+    },
+    /// `Blend::new` got no maps.
+    NoMaps,
+    /// Wrong number of weights.
+    WeightCount {
+        /// Number of maps.
+        expected: usize,
+        /// Number of weights given.
+        found: usize,
+    },
+    /// Weight `index` is negative, NaN or infinite.
+    BadWeight {
+        /// Index of the weight.
+        index: usize,
+    },
+    /// Weights do not sum to 1.
+    WeightSum {
+        /// Their sum.
+        sum: f32,
+    },
+    /// A point or box has the wrong number of coordinates, or a non-finite one.
+    PointDim {
+        /// The blend's dimension.
+        expected: usize,
+        /// Coordinates given.
+        found: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    BadCoordinate,
+    /// Kernel sigma is not a positive finite number.
+    BadSigma,
+    /// A splat buffer has the wrong size (or a resolution is 0).
+    BufferSize {
+        /// Values the buffer needs.
+        expected: usize,
+        /// Values it has.
+        found: usize,
+    },
+    /// `sample` index past the end.
+    IndexOutOfRange {
+        /// Index asked for.
+        index: u32,
+        /// Number of points.
+        n: u32,
+    },
+}
+
+impl From<FormatError> for Error {
+    fn from(e: FormatError) -> Self {
+        Self::Format(e)
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Format(e) => write!(f, "{e}"),
+            Self::ProxyMismatch { map } => write!(
+                f,
+                "map {map} was baked against another proxy (proxy keys differ): bake every map of a blend from one manifest"
+            ),
+            Self::ShapeMismatch { map, field } => {
+                write!(f, "map {map} has another `{field}` than the proxy: it belongs to another bake")
+            }
+            Self::NoMaps => write!(f, "a blend needs at least one map"),
+            Self::WeightCount { expected, found } => {
+                write!(f, "{found} weights given for {expected} maps: give one weight per input")
+            }
+            Self::BadWeight { index } => {
+                write!(f, "weight {index} is negative or not a number: weights must be finite and >= 0")
+            }
+            Self::WeightSum { sum } => write!(f, "weights sum to {sum}, they must sum to 1"),
+            Self::PointDim { expected, found } => {
+                write!(f, "{found} coordinates given for a {expected}-dimensional blend")
+            }
+            Self::BadCoordinate => write!(f, "a query coordinate is NaN or infinite"),
+            Self::BadSigma => write!(f, "kernel sigma must be a positive finite number"),
+            Self::BufferSize { expected, found } => write!(
+                f,
+                "splat buffer holds {found} values but the resolution needs {expected} (resolutions must be >= 1)"
+            ),
+            Self::IndexOutOfRange { index, n } => write!(f, "sample index {index} is out of range: the blend has {n} points"),
+        }
+    }
+}
+
+impl core::error::Error for Error {}
