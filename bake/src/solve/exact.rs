@@ -32,11 +32,13 @@ pub(super) fn solve(
     n: usize,
     settings: &ExactSettings,
 ) -> Result<Solution, SolveError> {
-    if n > settings.max_n {
+    // Indices are u32, with u32::MAX reserved for "unassigned".
+    let max = settings.max_n.min(NONE as usize - 1);
+    if n > max {
         return Err(SolveError::TooLarge {
             solver: NAME,
             n,
-            max: settings.max_n,
+            max,
             hint: "use solver kind = \"sliced\" (or the scalable solver), or raise max_n (time grows like n^2 to n^3)",
         });
     }
@@ -505,7 +507,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::super::rng::SplitMix64;
-    use super::super::{solve as solve_any, SolverSettings};
+    use super::super::{solve as solve_any, Solution, SolverSettings};
     use super::*;
 
     fn random_points(rng: &mut SplitMix64, n: usize, dim: usize) -> Vec<f32> {
@@ -682,6 +684,35 @@ mod tests {
             let identity = (0..n).map(|i| cost(i, i)).sum::<f64>() / n as f64;
             assert!(exact.report.cost <= identity);
         }
+    }
+
+    #[test]
+    fn exact_is_bit_identical_for_any_thread_count() -> Result<(), Box<dyn std::error::Error>> {
+        let mut rng = SplitMix64::new(8);
+        let n = 400;
+        let s = random_points(&mut rng, n, 3);
+        let t: Vec<f32> = random_points(&mut rng, n, 3)
+            .iter()
+            .map(|v| v * v)
+            .collect();
+        let problem = Problem {
+            dim: 3,
+            source: &s,
+            target: &t,
+        };
+        let settings = SolverSettings::Exact(ExactSettings::default());
+        let run = |k: usize| -> Result<Solution, Box<dyn std::error::Error>> {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(k).build()?;
+            Ok(pool.install(|| solve_any(&problem, &settings))?)
+        };
+        let (one, four) = (run(1)?, run(4)?);
+        assert_eq!(one.assignment, four.assignment);
+        assert_eq!(
+            one.report.residual.to_bits(),
+            four.report.residual.to_bits()
+        );
+        assert_eq!(one, four);
+        Ok(())
     }
 
     #[test]
