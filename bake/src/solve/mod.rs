@@ -47,7 +47,7 @@ pub enum SolverSettings {
 /// Settings of the exact assignment solver.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExactSettings {
-    /// Refuse larger problems: time grows roughly like n²–n³ (about 1 s at n = 5000 in release on
+    /// Refuse larger problems: time grows roughly like n²–n³ (about 1.5 s at n = 5000 in release on
     /// the 2-core build machine). Default 6000.
     pub max_n: usize,
 }
@@ -62,12 +62,14 @@ impl Default for ExactSettings {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SlicedSettings {
     /// Number of iterations; each one matches the 1D projections along `dim` orthonormal random
-    /// directions. Default 96 (see [`SlicedSettings::default`]).
+    /// directions. Default 200 (see [`SlicedSettings::default`]).
     pub iterations: u32,
     /// Seed of the random rotations. Same seed, same inputs ⇒ bit-identical output.
     pub seed: u64,
-    /// Fraction of the 1D displacement applied per iteration, in (0, 1]. Default 1 (Pitié's
-    /// iterative distribution transfer); smaller steps converge more slowly.
+    /// Fraction of the 1D displacement applied per iteration, in (0, 1]. Default 0.3: smaller steps
+    /// follow the sliced-Wasserstein gradient flow more closely and give maps much closer to the OT
+    /// map, at the price of more iterations (see [`SlicedSettings::default`]). 1 is Pitié's
+    /// iterative distribution transfer.
     pub step: f64,
     /// Convergence tolerance: the final sliced W2² between mapped and target points, over
     /// `check_directions` fixed directions, must be at most `tolerance` × the mean projected
@@ -79,15 +81,27 @@ pub struct SlicedSettings {
 }
 
 impl Default for SlicedSettings {
-    /// 96 iterations: on the uniform → two-blobs 2D case used to choose it (tests in `sliced.rs`)
-    /// the relative residual is far below the 1e-3 tolerance from about 30 iterations on at n = 4000,
-    /// and the transport cost changes by less than 0.1% between 64 and 200 iterations; 96 leaves margin
-    /// for harder (multi-modal, 3D) targets at an affordable price (O(n log n) per iteration).
+    /// Chosen by measuring uniform → two and three Gaussian blobs (σ = 0.06) at n = 4000 in 2D and
+    /// n = 3000 in 3D against the exact solver (release build; L2-UVP = mean squared distance to the
+    /// exact map / target variance; relative residual = sliced W2² / projected target variance):
+    ///
+    /// | step, iterations | 2D 2 blobs: cost/exact, UVP, residual | 2D 3 blobs | 3D 3 blobs |
+    /// |---|---|---|---|
+    /// | 1.0, 64   | 1.235, 36%, 1.0e-5 | 1.036, 6.6%, 1.1e-4 | 1.167, 27%, 7.9e-5 |
+    /// | 0.3, 128  | 1.022, 8.2%, 1.2e-5 | 0.994, 3.2%, 2.6e-4 | 1.021, 12%, 2.0e-4 |
+    /// | 0.3, 200  | 1.023, 8.2%, 7.6e-6 | 1.000, 3.4%, 1.2e-4 | 1.029, 12%, 7.9e-5 |
+    /// | 0.2, 200  | 1.010, 5.3%, 1.5e-5 | 0.991, 3.3%, 2.3e-4 | 1.012, 9.5%, 1.6e-4 |
+    /// | 0.1, 400  | 1.002, 2.0%, 1.8e-5 | 0.992, 3.5%, 2.6e-4 | — |
+    ///
+    /// Full steps converge fastest in distribution but give a map far from the OT map (36% UVP on two
+    /// blobs); step 0.3 with 200 iterations cuts that to 8% and ends ≥ 8× below the 1e-3 tolerance
+    /// on every case, where step 0.2 leaves less margin in 3D. 200 iterations take ≈ 3 s at
+    /// n = 250 000 in 2D on the 2-core build machine.
     fn default() -> Self {
         Self {
-            iterations: 96,
+            iterations: 200,
             seed: 0,
-            step: 1.0,
+            step: 0.3,
             tolerance: 1e-3,
             check_directions: 32,
         }

@@ -45,13 +45,13 @@ pub(super) fn solve(
     let dim = problem.dim;
     let mut x = super::to_f64(problem.source);
     let y = super::to_f64(problem.target);
-    let mut ws = Workspace::new(n, dim);
+    let mut dirs: Vec<Direction> = (0..dim).map(|_| Direction::new(n)).collect();
     let mut rng = SplitMix64::new(settings.seed);
     for _ in 0..settings.iterations {
         let basis = rng.rotation(dim);
-        iterate(dim, &mut x, &y, &basis, settings.step, &mut ws);
+        iterate(dim, &mut x, &y, &basis, settings.step, &mut dirs);
     }
-    drop(ws);
+    drop(dirs);
     let mapped: Vec<f32> = x.par_iter().map(|&v| v as f32).collect();
     drop(x);
     super::check_finite("mapped", dim, &mapped)?;
@@ -134,27 +134,74 @@ fn check_settings(s: &SlicedSettings) -> Result<(), SolveError> {
     Ok(())
 }
 
-/// Buffers reused across iterations.
-struct Workspace {
-    /// Accumulated displacement per point (n*dim).
-    disp: Vec<f64>,
-    /// Projections of the moving points.
+/// Buffers of one direction, reused across iterations.
+struct Direction {
+    /// Projections of the moving points, then their 1D displacements.
     xp: Vec<f64>,
-    /// Sorted projections of the target points.
-    yp: Vec<f64>,
-    /// (order key of the projection) << 64 | point index, sorted.
-    keys: Vec<u128>,
+    /// Order keys of the moving points' projections, sorted along with `idx`.
+    keys: Vec<u64>,
+    /// Point indices, in key order after sorting.
+    idx: Vec<u32>,
+    /// Order keys of the target points' projections, sorted.
+    ykeys: Vec<u64>,
+    /// Radix sort scratch.
+    tmp_keys: Vec<u64>,
+    tmp_idx: Vec<u32>,
 }
 
-impl Workspace {
-    fn new(n: usize, dim: usize) -> Self {
+impl Direction {
+    fn new(n: usize) -> Self {
         Self {
-            disp: vec![0.0; n * dim],
             xp: vec![0.0; n],
-            yp: vec![0.0; n],
             keys: vec![0; n],
+            idx: vec![0; n],
+            ykeys: vec![0; n],
+            tmp_keys: vec![0; n],
+            tmp_idx: vec![0; n],
         }
     }
+
+    /// Projects both clouds on `theta`, matches them by rank and leaves in `xp` the 1D displacement
+    /// of every moving point (target value at its rank − its own value). Sequential: the directions
+    /// of an iteration run in parallel instead.
+    fn displacements(&mut self, dim: usize, x: &[f64], y: &[f64], theta: &[f64]) {
+        for (k, p) in self.ykeys.iter_mut().zip(y.chunks_exact(dim)) {
+            *k = order_key(dot(p, theta));
+        }
+        radix_sort(
+            &mut self.ykeys,
+            &mut self.tmp_keys,
+            &mut Vec::new(),
+            &mut Vec::new(),
+        );
+        for (i, ((o, k), p)) in self
+            .xp
+            .iter_mut()
+            .zip(self.keys.iter_mut())
+            .zip(x.chunks_exact(dim))
+            .enumerate()
+        {
+            *o = dot(p, theta);
+            *k = order_key(*o);
+            self.idx[i] = i as u32;
+        }
+        // Stable, and the input is in index order: ties stay in index order.
+        radix_sort(
+            &mut self.keys,
+            &mut self.tmp_keys,
+            &mut self.idx,
+            &mut self.tmp_idx,
+        );
+        for (&i, &yk) in self.idx.iter().zip(&self.ykeys) {
+            let i = i as usize;
+            self.xp[i] = key_value(yk) - self.xp[i];
+        }
+    }
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// An unsigned key with the order of `f64::total_cmp`.
@@ -168,59 +215,108 @@ fn order_key(v: f64) -> u64 {
     }
 }
 
-/// out[i] = θ · p_i.
-fn project(dim: usize, points: &[f64], theta: &[f64], out: &mut [f64]) {
-    out.par_iter_mut()
-        .zip(points.par_chunks_exact(dim))
-        .for_each(|(o, p)| *o = p.iter().zip(theta).map(|(a, b)| a * b).sum());
+/// The inverse of [`order_key`].
+#[inline]
+fn key_value(k: u64) -> f64 {
+    f64::from_bits(if k >> 63 == 1 { k & !(1 << 63) } else { !k })
 }
 
-/// One iteration: match along each row of the orthonormal `basis`, then move.
-fn iterate(dim: usize, x: &mut [f64], y: &[f64], basis: &[f64], step: f64, ws: &mut Workspace) {
-    ws.disp.par_iter_mut().for_each(|v| *v = 0.0);
-    for theta in basis.chunks_exact(dim) {
-        project(dim, x, theta, &mut ws.xp);
-        project(dim, y, theta, &mut ws.yp);
-        ws.yp.par_sort_unstable_by(f64::total_cmp);
-        ws.keys
-            .par_iter_mut()
-            .zip(ws.xp.par_iter())
-            .enumerate()
-            .for_each(|(i, (k, &p))| *k = (u128::from(order_key(p)) << 64) | i as u128);
-        ws.keys.par_sort_unstable();
-        for (&key, &target) in ws.keys.iter().zip(&ws.yp) {
-            let i = key as u64 as usize;
-            let delta = target - ws.xp[i];
-            for (d, t) in ws.disp[i * dim..(i + 1) * dim].iter_mut().zip(theta) {
-                *d += delta * t;
-            }
+/// Stable LSD radix sort of `keys` (8-bit digits, digits shared by all keys skipped), permuting
+/// `vals` alike when it is not empty. `tmp_*` are scratch buffers of the same lengths. O(n) per
+/// digit, and — unlike a comparison sort split across threads — trivially deterministic.
+fn radix_sort(
+    keys: &mut Vec<u64>,
+    tmp_keys: &mut Vec<u64>,
+    vals: &mut Vec<u32>,
+    tmp_vals: &mut Vec<u32>,
+) {
+    let n = keys.len();
+    let with_vals = !vals.is_empty();
+    debug_assert!(!with_vals || vals.len() == n);
+    let mut hist = [[0usize; 256]; 8];
+    for &k in keys.iter() {
+        for (b, h) in hist.iter_mut().enumerate() {
+            h[((k >> (8 * b)) & 0xFF) as usize] += 1;
         }
     }
-    x.par_chunks_exact_mut(dim)
-        .zip(ws.disp.par_chunks_exact(dim))
-        .for_each(|(p, d)| {
-            for (a, b) in p.iter_mut().zip(d) {
-                *a += step * b;
+    for (b, h) in hist.iter().enumerate() {
+        if h.contains(&n) {
+            continue; // every key has the same digit here
+        }
+        let mut offsets = [0usize; 256];
+        let mut sum = 0;
+        for (o, &c) in offsets.iter_mut().zip(h) {
+            *o = sum;
+            sum += c;
+        }
+        let shift = 8 * b;
+        if with_vals {
+            for (&k, &v) in keys.iter().zip(vals.iter()) {
+                let d = ((k >> shift) & 0xFF) as usize;
+                tmp_keys[offsets[d]] = k;
+                tmp_vals[offsets[d]] = v;
+                offsets[d] += 1;
             }
-        });
+            std::mem::swap(vals, tmp_vals);
+        } else {
+            for &k in keys.iter() {
+                let d = ((k >> shift) & 0xFF) as usize;
+                tmp_keys[offsets[d]] = k;
+                offsets[d] += 1;
+            }
+        }
+        std::mem::swap(keys, tmp_keys);
+    }
+}
+
+/// One iteration: match along each row of the orthonormal `basis` (directions in parallel), then
+/// move every point by `step × Σ_θ δ_θ θ`, summing the directions in order.
+fn iterate(dim: usize, x: &mut [f64], y: &[f64], basis: &[f64], step: f64, dirs: &mut [Direction]) {
+    {
+        let xs: &[f64] = x;
+        dirs.par_iter_mut()
+            .zip(basis.par_chunks_exact(dim))
+            .for_each(|(d, theta)| d.displacements(dim, xs, y, theta));
+    }
+    let dirs: &[Direction] = dirs;
+    x.par_chunks_exact_mut(dim).enumerate().for_each(|(i, p)| {
+        for (a, pa) in p.iter_mut().enumerate() {
+            let mut move_a = 0.0;
+            for (d, theta) in dirs.iter().zip(basis.chunks_exact(dim)) {
+                move_a += d.xp[i] * theta[a];
+            }
+            *pa += step * move_a;
+        }
+    });
 }
 
 /// (mean over `dirs` of the 1D W2² between the projections of `a` and `b`, mean over `dirs` of the
-/// variance of the projections of `b`). Equal sizes, uniform weights.
+/// variance of the projections of `b`). Equal sizes, uniform weights. Directions in parallel, each
+/// with its own buffers; per-direction sums are deterministic and added in direction order.
 pub(crate) fn sliced_w2(dim: usize, a: &[f64], b: &[f64], dirs: &[f64]) -> (f64, f64) {
     let n = a.len() / dim;
-    let (mut pa, mut pb) = (vec![0.0; n], vec![0.0; n]);
-    let (mut sw, mut var) = (0.0, 0.0);
-    for theta in dirs.chunks_exact(dim) {
-        project(dim, a, theta, &mut pa);
-        project(dim, b, theta, &mut pb);
-        pa.par_sort_unstable_by(f64::total_cmp);
-        pb.par_sort_unstable_by(f64::total_cmp);
-        sw += det_sum(n, |k| (pa[k] - pb[k]) * (pa[k] - pb[k])) / n as f64;
-        let mean = det_sum(n, |k| pb[k]) / n as f64;
-        var += det_sum(n, |k| (pb[k] - mean) * (pb[k] - mean)) / n as f64;
-    }
-    let m = (dirs.len() / dim) as f64;
+    let per_dir: Vec<(f64, f64)> = dirs
+        .par_chunks_exact(dim)
+        .map(|theta| {
+            let sorted = |points: &[f64]| {
+                let mut keys: Vec<u64> = points
+                    .chunks_exact(dim)
+                    .map(|p| order_key(dot(p, theta)))
+                    .collect();
+                radix_sort(&mut keys, &mut vec![0; n], &mut Vec::new(), &mut Vec::new());
+                keys.into_iter().map(key_value).collect::<Vec<f64>>()
+            };
+            let (pa, pb) = (sorted(a), sorted(b));
+            let sw = det_sum(n, |k| (pa[k] - pb[k]) * (pa[k] - pb[k])) / n as f64;
+            let mean = det_sum(n, |k| pb[k]) / n as f64;
+            let var = det_sum(n, |k| (pb[k] - mean) * (pb[k] - mean)) / n as f64;
+            (sw, var)
+        })
+        .collect();
+    let m = per_dir.len() as f64;
+    let (sw, var) = per_dir
+        .iter()
+        .fold((0.0, 0.0), |(s, v), &(a, b)| (s + a, v + b));
     (sw / m, var / m)
 }
 
@@ -297,6 +393,38 @@ mod tests {
         );
     }
 
+    #[test]
+    fn radix_sort_matches_a_stable_sort_by_key_then_index() {
+        let mut rng = SplitMix64::new(12);
+        for n in [0usize, 1, 2, 7, 300, 5000] {
+            // Few distinct values (many ties), negative and positive, some shared bytes.
+            let values: Vec<f64> = (0..n)
+                .map(|_| ((rng.next_u64() % 17) as f64 - 8.0) * 0.125)
+                .collect();
+            let mut keys: Vec<u64> = values.iter().map(|&v| order_key(v)).collect();
+            let mut idx: Vec<u32> = (0..n as u32).collect();
+            radix_sort(&mut keys, &mut vec![0; n], &mut idx, &mut vec![0; n]);
+            let mut want: Vec<u32> = (0..n as u32).collect();
+            want.sort_by(|&i, &j| {
+                values[i as usize]
+                    .total_cmp(&values[j as usize])
+                    .then(i.cmp(&j))
+            });
+            assert_eq!(idx, want);
+            for (k, &i) in keys.iter().zip(&idx) {
+                assert_eq!(key_value(*k).to_bits(), values[i as usize].to_bits());
+            }
+            let mut alone: Vec<u64> = values.iter().map(|&v| order_key(v)).collect();
+            radix_sort(
+                &mut alone,
+                &mut vec![0; n],
+                &mut Vec::new(),
+                &mut Vec::new(),
+            );
+            assert_eq!(alone, keys);
+        }
+    }
+
     /// Axis-aligned Gaussians: the OT map is x ↦ m_t + (σ_t/σ_s)(x − m_s) per axis.
     #[test]
     fn sliced_maps_gaussian_to_gaussian_like_the_closed_form() {
@@ -363,7 +491,7 @@ mod tests {
         let mut rng = SplitMix64::new(9);
         let (s, t) = two_blobs(&mut rng, 3000);
         let settings = SolverSettings::Sliced(SlicedSettings {
-            iterations: 20,
+            iterations: 60,
             seed: 5,
             ..SlicedSettings::default()
         });
@@ -389,7 +517,7 @@ mod tests {
         let other = solve_any(
             &problem,
             &SolverSettings::Sliced(SlicedSettings {
-                iterations: 20,
+                iterations: 60,
                 seed: 6,
                 ..SlicedSettings::default()
             }),

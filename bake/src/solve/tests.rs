@@ -151,7 +151,7 @@ fn settings_name_and_fingerprint() {
     assert_eq!(e.fingerprint(), "exact(max_n=6000)");
     assert_eq!(
         s.fingerprint(),
-        "sliced(iterations=96,seed=0,step=1.0,tolerance=0.001,check_directions=32)"
+        "sliced(iterations=200,seed=0,step=0.3,tolerance=0.001,check_directions=32)"
     );
 }
 
