@@ -91,11 +91,15 @@ pub fn proxy_key(m: &Manifest, dim: usize) -> Result<[u8; 32], BakeError> {
 }
 
 /// A map's key: the proxy key, the input's identity, and the solver settings.
-pub fn map_key(m: &Manifest, proxy_key: &[u8; 32], spec: &InputSpec) -> Result<[u8; 32], BakeError> {
+pub fn map_key(
+    m: &Manifest,
+    proxy_key: &[u8; 32],
+    spec: &InputSpec,
+) -> Result<[u8; 32], BakeError> {
     let mut k = KeyBuilder::new("map");
     k.field("proxy", proxy_key);
     input_identity(&mut k, spec)?;
-    k.debug("solver", &m.solver);
+    k.field("solver", m.solver.fingerprint().as_bytes());
     Ok(k.finish())
 }
 
@@ -131,47 +135,65 @@ pub fn bake(m: &Manifest, opts: &BakeOptions) -> Result<BakeReport, BakeError> {
     let pkey = proxy_key(m, dim)?;
     let proxy_path = m.proxy_archive();
 
-    // The proxy is needed in memory only if some map must be built; load or build it lazily.
+    // Decide what is stale, then decode every stale input before writing anything: a bad input fails
+    // the bake before any work is done or any file is touched.
+    let mut stale = Vec::new();
+    for (index, spec) in m.inputs.iter().enumerate() {
+        let key = map_key(m, &pkey, spec)?;
+        let path = m.map_archive(&spec.name);
+        if !opts.force && archive::map_key_on_disk(&path) == Some(key) {
+            continue;
+        }
+        stale.push((index, key, load_input(spec)?));
+    }
+
+    // The proxy is needed in memory only if some map must be built.
     let t = Instant::now();
     let proxy_cached = !opts.force && archive::proxy_key_on_disk(&proxy_path) == Some(pkey);
-    let mut proxy: Option<ProxyData> = None;
-    if !proxy_cached {
+    let proxy = if !proxy_cached {
         let data = build_proxy(m, dim, pkey)?;
-        write(&proxy_path, data.encode(), &proxy_path)?;
-        proxy = Some(data);
-    }
+        write(&proxy_path, data.encode())?;
+        Some(data)
+    } else if stale.is_empty() {
+        None
+    } else {
+        // Current on disk: read its points back rather than resampling.
+        match archive::load_proxy_positions(&proxy_path, &pkey) {
+            Some(p) => Some(p),
+            None => Some(build_proxy(m, dim, pkey)?),
+        }
+    };
     report.products.push(Product {
         name: "proxy".into(),
         path: proxy_path.clone(),
-        status: if proxy_cached { Status::Cached } else { Status::Built },
+        status: if proxy_cached {
+            Status::Cached
+        } else {
+            Status::Built
+        },
         seconds: t.elapsed().as_secs_f64(),
         detail: describe_proxy(m),
     });
 
+    let mut stale = stale.into_iter().peekable();
     for (index, spec) in m.inputs.iter().enumerate() {
-        let t = Instant::now();
-        let key = map_key(m, &pkey, spec)?;
         let path = m.map_archive(&spec.name);
-        if !opts.force && archive::map_key_on_disk(&path) == Some(key) {
+        let t = Instant::now();
+        let Some((_, key, grid)) = stale.next_if(|(i, _, _)| *i == index) else {
             report.products.push(Product {
                 name: spec.name.clone(),
                 path,
                 status: Status::Cached,
-                seconds: t.elapsed().as_secs_f64(),
+                seconds: 0.0,
                 detail: String::new(),
             });
             continue;
-        }
-        if proxy.is_none() {
-            // The proxy archive was current; read its points back rather than resampling.
-            proxy = Some(match archive::load_proxy_positions(&proxy_path, &pkey) {
-                Some(p) => p,
-                None => build_proxy(m, dim, pkey)?,
-            });
-        }
-        let p = proxy.as_ref().expect("proxy loaded above");
-        let data = build_map(m, index, p, key)?;
-        write(&path, data.encode(), &path)?;
+        };
+        let p = proxy
+            .as_ref()
+            .expect("a proxy is loaded whenever a map is stale");
+        let data = build_map(m, index, &grid, p, key)?;
+        write(&path, data.encode())?;
         report.products.push(Product {
             name: spec.name.clone(),
             path,
@@ -186,10 +208,9 @@ pub fn bake(m: &Manifest, opts: &BakeOptions) -> Result<BakeReport, BakeError> {
 fn write(
     path: &std::path::Path,
     bytes: Result<rkyv::util::AlignedVec<16>, otbake_formats::write::WriteError>,
-    shown: &std::path::Path,
 ) -> Result<(), BakeError> {
     let bytes = bytes.map_err(|source| BakeError::Encode {
-        path: shown.to_path_buf(),
+        path: path.to_path_buf(),
         source,
     })?;
     fsio::write_atomic(path, &bytes)?;
@@ -201,25 +222,29 @@ fn describe_proxy(m: &Manifest) -> String {
         ProxySource::Shape(s) => format!("{s:?}"),
         ProxySource::Input(i) => format!("input {:?}", m.inputs[*i].name),
     };
-    format!("{src} samples={} seed={} leaf_size={}", m.proxy.samples, m.proxy.seed, m.proxy.leaf_size)
+    format!(
+        "{src} samples={} seed={} leaf_size={}",
+        m.proxy.samples, m.proxy.seed, m.proxy.leaf_size
+    )
 }
 
 /// Samples an input's density (the target of its map, or the proxy for an input proxy).
 fn sample_input(m: &Manifest, spec: &InputSpec, grid: &Grid) -> Result<Vec<f32>, BakeError> {
-    sample::importance_sample(grid, m.proxy.samples, spec.seed).map_err(|source| BakeError::Sample {
-        what: format!("input {:?}", spec.name),
-        source,
+    sample::importance_sample(grid, m.proxy.samples, spec.seed).map_err(|source| {
+        BakeError::Sample {
+            what: format!("input {:?}", spec.name),
+            source,
+        }
     })
 }
 
 fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, BakeError> {
     let points = match &m.proxy.source {
-        ProxySource::Shape(shape) => {
-            proxy::proxy_points(shape, dim, m.proxy.samples, m.proxy.seed).map_err(|source| BakeError::Sample {
+        ProxySource::Shape(shape) => proxy::proxy_points(shape, dim, m.proxy.samples, m.proxy.seed)
+            .map_err(|source| BakeError::Sample {
                 what: "proxy".into(),
                 source,
-            })?
-        }
+            })?,
         ProxySource::Input(i) => {
             let spec = &m.inputs[*i];
             sample_input(m, spec, &load_input(spec)?)?
@@ -235,15 +260,25 @@ fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, Bak
     })
 }
 
-fn build_map(m: &Manifest, index: usize, proxy: &ProxyData, key: [u8; 32]) -> Result<MapData, BakeError> {
+fn build_map(
+    m: &Manifest,
+    index: usize,
+    grid: &Grid,
+    proxy: &ProxyData,
+    key: [u8; 32],
+) -> Result<MapData, BakeError> {
     let spec = &m.inputs[index];
-    let grid = load_input(spec)?;
     let dim = proxy.dim;
-    let (positions, solver_report, transport_cost) = if m.proxy.source == ProxySource::Input(index) {
+    let (positions, solver_report, transport_cost) = if m.proxy.source == ProxySource::Input(index)
+    {
         // This input *is* the proxy: its map is the identity (paper eq. 3 blends against it).
-        (proxy.positions.clone(), "identity (input is the proxy)".to_string(), 0.0)
+        (
+            proxy.positions.clone(),
+            "identity (input is the proxy)".to_string(),
+            0.0,
+        )
     } else {
-        let target = sample_input(m, spec, &grid)?;
+        let target = sample_input(m, spec, grid)?;
         let problem = Problem {
             dim,
             source: &proxy.positions,
@@ -263,7 +298,10 @@ fn build_map(m: &Manifest, index: usize, proxy: &ProxyData, key: [u8; 32]) -> Re
     let colors = if grid.ratio.is_empty() {
         Vec::new()
     } else {
-        positions.chunks_exact(dim).flat_map(|p| grid.ratio_at(p)).collect()
+        positions
+            .chunks_exact(dim)
+            .flat_map(|p| grid.ratio_at(p))
+            .collect()
     };
     Ok(MapData {
         name: spec.name.clone(),

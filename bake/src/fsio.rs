@@ -28,7 +28,10 @@ fn io<'a>(action: &'static str, path: &'a Path) -> impl FnOnce(std::io::Error) -
 /// Writes `bytes` to `path` atomically: a temporary file in the same directory, fsynced, then renamed
 /// over `path`. A crash at any point leaves either the old file or the new one, never a torn file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).map_err(io("cannot create directory", dir))?;
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
     // Unique per process and call, so concurrent writers never share a temporary file.

@@ -20,7 +20,12 @@ impl Rgba {
         Self {
             width,
             height,
-            pixels: value.iter().copied().cycle().take(width * height * 4).collect(),
+            pixels: value
+                .iter()
+                .copied()
+                .cycle()
+                .take(width * height * 4)
+                .collect(),
         }
     }
 
@@ -67,7 +72,10 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 /// Writes `img` to `path` (atomically), as PNG or EXR by extension. PNG drops alpha when it is 1
 /// everywhere.
 pub fn write_image(path: &Path, img: &Rgba) -> Result<(), ImageWriteError> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
     let bytes = match ext.as_deref() {
         Some("png") => encode_png(img),
         Some("exr") => encode_exr(img),
@@ -115,7 +123,12 @@ fn encode_exr(img: &Rgba) -> Result<Vec<u8>, String> {
         (px[i], px[i + 1], px[i + 2], px[i + 3])
     });
     // ZIP16 in increasing line order: the default (RLE, unspecified order) is not byte-deterministic.
-    let layer = Layer::new((w, h), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        channels,
+    );
     let mut cursor = std::io::Cursor::new(Vec::new());
     Image::from_layer(layer)
         .write()

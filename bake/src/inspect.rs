@@ -35,7 +35,11 @@ pub fn describe(bytes: &[u8]) -> String {
                 );
                 s += &format!("key            {}\n", hex(&p.key));
                 s += &format!("settings       {}\n", &*p.description);
-                s += &format!("sizes          positions={} B node_boxes={} B\n", p.positions.len() * 4, p.node_boxes.len() * 4);
+                s += &format!(
+                    "sizes          positions={} B node_boxes={} B\n",
+                    p.positions.len() * 4,
+                    p.node_boxes.len() * 4
+                );
             }
             Err(e) => s += &format!("payload        INVALID: {e}\n"),
         },

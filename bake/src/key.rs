@@ -14,7 +14,10 @@ impl KeyBuilder {
         let mut k = Self(blake3::Hasher::new());
         k.field("otbake-key", kind.as_bytes());
         k.field("otbake-version", env!("CARGO_PKG_VERSION").as_bytes());
-        k.field("format-version", &otbake_formats::FORMAT_VERSION.to_le_bytes());
+        k.field(
+            "format-version",
+            &otbake_formats::FORMAT_VERSION.to_le_bytes(),
+        );
         k.field("rkyv-flags", &otbake_formats::RKYV_FLAGS.to_le_bytes());
         k
     }
@@ -50,11 +53,26 @@ mod tests {
 
     #[test]
     fn fields_are_length_prefixed() {
-        let a = KeyBuilder::new("x").field("f", b"ab").field("g", b"c").finish();
-        let b = KeyBuilder::new("x").field("f", b"a").field("g", b"bc").finish();
+        let a = KeyBuilder::new("x")
+            .field("f", b"ab")
+            .field("g", b"c")
+            .finish();
+        let b = KeyBuilder::new("x")
+            .field("f", b"a")
+            .field("g", b"bc")
+            .finish();
         assert_ne!(a, b);
-        let c = KeyBuilder::new("y").field("f", b"ab").field("g", b"c").finish();
+        let c = KeyBuilder::new("y")
+            .field("f", b"ab")
+            .field("g", b"c")
+            .finish();
         assert_ne!(a, c);
-        assert_eq!(a, KeyBuilder::new("x").field("f", b"ab").field("g", b"c").finish());
+        assert_eq!(
+            a,
+            KeyBuilder::new("x")
+                .field("f", b"ab")
+                .field("g", b"c")
+                .finish()
+        );
     }
 }

@@ -9,7 +9,11 @@ use otbake::render::{render, render_grid, Archives, Method, RenderSettings};
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
-#[command(name = "otbake", version, about = "Bake optimal-transport maps of appearance assets; blend them at run time.")]
+#[command(
+    name = "otbake",
+    version,
+    about = "Bake optimal-transport maps of appearance assets; blend them at run time."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -58,7 +62,12 @@ enum Command {
         /// Manifest file.
         manifest: PathBuf,
         /// One non-negative weight per input, in manifest order, summing to 1: e.g. 0.5,0.5.
-        #[arg(long, value_delimiter = ',', required = true, allow_hyphen_values = true)]
+        #[arg(
+            long,
+            value_delimiter = ',',
+            required = true,
+            allow_hyphen_values = true
+        )]
         weights: Vec<f32>,
         #[command(flatten)]
         image: ImageArgs,
@@ -98,8 +107,15 @@ enum Command {
 }
 
 fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("{s:?}: expected WxH, e.g. 256x256"))?;
-    let parse = |v: &str| v.trim().parse::<usize>().ok().filter(|&v| (1..=16384).contains(&v));
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("{s:?}: expected WxH, e.g. 256x256"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|&v| (1..=16384).contains(&v))
+    };
     match (parse(w), parse(h)) {
         (Some(w), Some(h)) => Ok((w, h)),
         _ => Err(format!("{s:?}: width and height must be 1 to 16384")),
@@ -131,7 +147,13 @@ fn load_and_bake(path: &Path, force: bool, quiet: bool) -> Result<Manifest> {
                 Status::Built => "built ",
                 Status::Cached => "cached",
             };
-            eprintln!("{status} {:<12} {:>8.2} s  {}  {}", p.name, p.seconds, p.path.display(), p.detail);
+            eprintln!(
+                "{status} {:<12} {:>8.2} s  {}  {}",
+                p.name,
+                p.seconds,
+                p.path.display(),
+                p.detail
+            );
         }
     }
     Ok(m)
@@ -160,7 +182,11 @@ fn run(cli: Cli) -> Result<()> {
                     weights.len(),
                     manifest.display(),
                     maps.len(),
-                    m.inputs.iter().map(|i| i.name.as_str()).collect::<Vec<_>>().join(", ")
+                    m.inputs
+                        .iter()
+                        .map(|i| i.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 );
             }
             let img = render(archives.proxy()?, &maps, &weights, &settings)?;
@@ -178,22 +204,32 @@ fn run(cli: Cli) -> Result<()> {
             let img = render_grid(&archives, steps, &settings)?;
             write_image(&output, &img)?;
         }
-        Command::Points { manifest, input, output } => {
+        Command::Points {
+            manifest,
+            input,
+            output,
+        } => {
             let m = load_and_bake(&manifest, false, true)?;
             if m.input_index(&input).is_none() {
                 bail!(
                     "--input {input:?} is not an input of {}: use one of {}",
                     manifest.display(),
-                    m.inputs.iter().map(|i| i.name.as_str()).collect::<Vec<_>>().join(", ")
+                    m.inputs
+                        .iter()
+                        .map(|i| i.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 );
             }
             let bytes = otbake::points::points_npy(&m, &input)?;
             otbake::fsio::write_atomic(&output, &bytes)?;
         }
         Command::Inspect { archive } => {
-            let bytes = std::fs::read(&archive).with_context(|| format!("cannot read {}", archive.display()))?;
+            let bytes = std::fs::read(&archive)
+                .with_context(|| format!("cannot read {}", archive.display()))?;
             print!("{}", otbake::inspect::describe(&bytes));
-            otbake::inspect::validate(&bytes).with_context(|| format!("{} is not a valid archive", archive.display()))?;
+            otbake::inspect::validate(&bytes)
+                .with_context(|| format!("{} is not a valid archive", archive.display()))?;
         }
     }
     Ok(())

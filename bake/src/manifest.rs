@@ -16,7 +16,7 @@
 //!
 //! [solver]
 //! kind = "sliced"               # exact | sliced
-//! iterations = 64
+//! iterations = 200             # sliced: iterations (default 200)
 //!
 //! [[input]]
 //! name = "duck"
@@ -57,7 +57,14 @@ pub struct ManifestError {
 impl fmt::Display for ManifestError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if self.line > 0 {
-            write!(f, "{}:{}:{}: {}", self.file.display(), self.line, self.column, self.message)
+            write!(
+                f,
+                "{}:{}:{}: {}",
+                self.file.display(),
+                self.line,
+                self.column,
+                self.message
+            )
         } else {
             write!(f, "{}: {}", self.file.display(), self.message)
         }
@@ -169,19 +176,27 @@ impl Manifest {
 
         let dir = raw.output.dir.get_ref();
         if dir.trim().is_empty() {
-            return Err(at(Some(raw.output.dir.span()), "`output.dir` is empty: name a directory".into()));
+            return Err(at(
+                Some(raw.output.dir.span()),
+                "`output.dir` is empty: name a directory".into(),
+            ));
         }
         let output_dir = base.join(dir);
 
         if raw.inputs.is_empty() {
-            return Err(at(None, "no [[input]] tables: add at least one input".into()));
+            return Err(at(
+                None,
+                "no [[input]] tables: add at least one input".into(),
+            ));
         }
         let mut inputs = Vec::new();
         for input in &raw.inputs {
             let name = input.name.get_ref();
             let valid = !name.is_empty()
                 && name.len() <= 64
-                && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+                && name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
             if !valid {
                 return Err(at(
                     Some(input.name.span()),
@@ -189,10 +204,17 @@ impl Manifest {
                 ));
             }
             if name == "proxy" {
-                return Err(at(Some(input.name.span()), "input name \"proxy\" is reserved for the proxy archive: rename the input".into()));
+                return Err(at(
+                    Some(input.name.span()),
+                    "input name \"proxy\" is reserved for the proxy archive: rename the input"
+                        .into(),
+                ));
             }
             if inputs.iter().any(|i: &InputSpec| &i.name == name) {
-                return Err(at(Some(input.name.span()), format!("input name {name:?} is used twice: names must be unique")));
+                return Err(at(
+                    Some(input.name.span()),
+                    format!("input name {name:?} is used twice: names must be unique"),
+                ));
             }
             let rel = input.path.get_ref();
             let resolved = base.join(rel);
@@ -234,13 +256,19 @@ impl Manifest {
         }
         let leaf_size = match &p.leaf_size {
             Some(l) if *l.get_ref() == 0 || *l.get_ref() > 4096 => {
-                return Err(at(Some(l.span()), "`proxy.leaf_size` must be 1 to 4096".into()));
+                return Err(at(
+                    Some(l.span()),
+                    "`proxy.leaf_size` must be 1 to 4096".into(),
+                ));
             }
             Some(l) => *l.get_ref(),
             None => DEFAULT_LEAF_SIZE,
         };
         let only = |field: Option<Range<usize>>, name: &str, kinds: &str| match field {
-            Some(span) => Err(at(Some(span), format!("`proxy.{name}` applies only to kind = {kinds}: remove it"))),
+            Some(span) => Err(at(
+                Some(span),
+                format!("`proxy.{name}` applies only to kind = {kinds}: remove it"),
+            )),
             None => Ok(()),
         };
         let kind = *p.kind.get_ref();
@@ -249,7 +277,11 @@ impl Manifest {
         }
         if kind != ProxyKind::Spiral {
             only(p.turns.as_ref().map(|s| s.span()), "turns", "\"spiral\"")?;
-            only(p.thickness.as_ref().map(|s| s.span()), "thickness", "\"spiral\"")?;
+            only(
+                p.thickness.as_ref().map(|s| s.span()),
+                "thickness",
+                "\"spiral\"",
+            )?;
         }
         if kind != ProxyKind::Input {
             only(p.input.as_ref().map(|s| s.span()), "input", "\"input\"")?;
@@ -281,7 +313,10 @@ impl Manifest {
                 let Some(index) = inputs.iter().position(|i| &i.name == name.get_ref()) else {
                     return Err(at(
                         Some(name.span()),
-                        format!("`proxy.input` = {:?} names no [[input]]: use one of the input names", name.get_ref()),
+                        format!(
+                            "`proxy.input` = {:?} names no [[input]]: use one of the input names",
+                            name.get_ref()
+                        ),
                     ));
                 };
                 ProxySource::Input(index)
@@ -298,8 +333,16 @@ impl Manifest {
         let skind = *s.kind.get_ref();
         let solver = match skind {
             SolverKind::Exact => {
-                if let Some(it) = &s.iterations {
-                    return Err(at(Some(it.span()), "`solver.iterations` applies only to kind = \"sliced\": remove it".into()));
+                for (span, key) in [
+                    (s.iterations.as_ref().map(|v| v.span()), "iterations"),
+                    (s.step.as_ref().map(|v| v.span()), "step"),
+                ] {
+                    if let Some(span) = span {
+                        return Err(at(
+                            Some(span),
+                            format!("`solver.{key}` applies only to kind = \"sliced\": remove it"),
+                        ));
+                    }
                 }
                 let mut e = ExactSettings::default();
                 if let Some(m) = &s.max_n {
@@ -309,17 +352,33 @@ impl Manifest {
             }
             SolverKind::Sliced => {
                 if let Some(m) = &s.max_n {
-                    return Err(at(Some(m.span()), "`solver.max_n` applies only to kind = \"exact\": remove it".into()));
+                    return Err(at(
+                        Some(m.span()),
+                        "`solver.max_n` applies only to kind = \"exact\": remove it".into(),
+                    ));
                 }
                 let mut sl = SlicedSettings::default();
                 if let Some(it) = &s.iterations {
                     if *it.get_ref() == 0 || *it.get_ref() > 100_000 {
-                        return Err(at(Some(it.span()), "`solver.iterations` must be 1 to 100000".into()));
+                        return Err(at(
+                            Some(it.span()),
+                            "`solver.iterations` must be 1 to 100000".into(),
+                        ));
                     }
                     sl.iterations = *it.get_ref();
                 }
                 if let Some(seed) = s.seed {
                     sl.seed = seed;
+                }
+                if let Some(step) = &s.step {
+                    let v = *step.get_ref();
+                    if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+                        return Err(at(
+                            Some(step.span()),
+                            format!("`solver.step` = {v} must be in (0, 1]"),
+                        ));
+                    }
+                    sl.step = v;
                 }
                 SolverSettings::Sliced(sl)
             }
@@ -397,6 +456,7 @@ enum SolverKind {
 struct RawSolver {
     kind: Spanned<SolverKind>,
     iterations: Option<Spanned<u32>>,
+    step: Option<Spanned<f64>>,
     seed: Option<u64>,
     max_n: Option<Spanned<u64>>,
 }
@@ -444,12 +504,16 @@ density = "inverted"
         assert_eq!(m.inputs[0].path, data_dir().join("duck.png"));
         assert_eq!(m.inputs[0].density, DensityChannel::Inverted);
         assert_eq!(m.proxy.samples, 1000);
-        assert_eq!(m.proxy.source, ProxySource::Shape(ProxyShape::Gaussian { sigma: 1.0 / 6.0 }));
+        assert_eq!(
+            m.proxy.source,
+            ProxySource::Shape(ProxyShape::Gaussian { sigma: 1.0 / 6.0 })
+        );
     }
 
     #[test]
     fn unknown_key_names_line_and_column() {
-        let e = manifest(&GOOD.replace("samples = 1000", "samples = 1000\nsigmma = 0.2")).unwrap_err();
+        let e =
+            manifest(&GOOD.replace("samples = 1000", "samples = 1000\nsigmma = 0.2")).unwrap_err();
         assert_eq!((e.line, e.column), (7, 1), "{e}");
         assert!(e.message.contains("sigmma"), "{e}");
         assert!(e.to_string().contains("test.toml:7:1"), "{e}");
@@ -469,7 +533,8 @@ density = "inverted"
         assert!(e.message.contains("unsupported"), "{e}");
         let e = manifest(&GOOD.replace("\"inverted\"", "\"inverse\"")).unwrap_err();
         assert_eq!(e.line, 12, "{e}");
-        let e = manifest(&GOOD.replace("kind = \"gaussian\"", "kind = \"uniform\"\nsigma = 0.1")).unwrap_err();
+        let e = manifest(&GOOD.replace("kind = \"gaussian\"", "kind = \"uniform\"\nsigma = 0.1"))
+            .unwrap_err();
         assert!(e.message.contains("only to kind"), "{e}");
         let e = manifest(&GOOD.replace("kind = \"gaussian\"", "kind = \"input\"")).unwrap_err();
         assert!(e.message.contains("proxy.input"), "{e}");

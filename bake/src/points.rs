@@ -27,8 +27,16 @@ pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
     let n = proxy.n() as usize;
     let mut data = Vec::with_capacity(n * 2 * d);
     for i in 0..n {
-        data.extend(p.positions[i * d..(i + 1) * d].iter().map(|v| v.to_native()));
-        data.extend(q.positions[i * d..(i + 1) * d].iter().map(|v| v.to_native()));
+        data.extend(
+            p.positions[i * d..(i + 1) * d]
+                .iter()
+                .map(|v| v.to_native()),
+        );
+        data.extend(
+            q.positions[i * d..(i + 1) * d]
+                .iter()
+                .map(|v| v.to_native()),
+        );
     }
     Ok(crate::npy::encode_f32(n, 2 * d, &data))
 }

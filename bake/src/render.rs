@@ -129,7 +129,12 @@ fn shade(rule: Composite, mass: f32, color: [f32; 3]) -> [f32; 4] {
 }
 
 /// Renders the blend of `maps` for `weights` as an image.
-pub fn render<'a>(proxy: Proxy<'a>, maps: &[Map<'a>], weights: &[f32], s: &RenderSettings) -> Result<Rgba, RenderError> {
+pub fn render<'a>(
+    proxy: Proxy<'a>,
+    maps: &[Map<'a>],
+    weights: &[f32],
+    s: &RenderSettings,
+) -> Result<Rgba, RenderError> {
     if proxy.dim() != 2 {
         return Err(RenderError::NotAnImage(proxy.dim()));
     }
@@ -174,7 +179,11 @@ pub fn render<'a>(proxy: Proxy<'a>, maps: &[Map<'a>], weights: &[f32], s: &Rende
                     },
                 )
                 .map_err(runtime("splat"))?;
-            let mean_mass: f32 = maps.iter().zip(weights).map(|(m, w)| m.mean_mass() * w).sum();
+            let mean_mass: f32 = maps
+                .iter()
+                .zip(weights)
+                .map(|(m, w)| m.mean_mass() * w)
+                .sum();
             for (i, px) in img.pixels.chunks_exact_mut(4).enumerate() {
                 let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
                 px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
@@ -193,9 +202,14 @@ pub fn render<'a>(proxy: Proxy<'a>, maps: &[Map<'a>], weights: &[f32], s: &Rende
 ///
 /// Returns the cells and the grid size in cells.
 #[allow(clippy::type_complexity)]
-pub fn grid_cells(k: usize, steps: usize) -> Result<(Vec<(usize, usize, Vec<f32>)>, (usize, usize)), RenderError> {
+pub fn grid_cells(
+    k: usize,
+    steps: usize,
+) -> Result<(Vec<(usize, usize, Vec<f32>)>, (usize, usize)), RenderError> {
     if steps < 2 {
-        return Err(RenderError::Grid(format!("--steps {steps}: use at least 2")));
+        return Err(RenderError::Grid(format!(
+            "--steps {steps}: use at least 2"
+        )));
     }
     let t = |i: usize| i as f32 / (steps - 1) as f32;
     let mut cells = Vec::new();
@@ -238,7 +252,11 @@ pub fn grid_cells(k: usize, steps: usize) -> Result<(Vec<(usize, usize, Vec<f32>
 }
 
 /// Renders the whole grid of blends as one image.
-pub fn render_grid(archives: &Archives, steps: usize, s: &RenderSettings) -> Result<Rgba, RenderError> {
+pub fn render_grid(
+    archives: &Archives,
+    steps: usize,
+    s: &RenderSettings,
+) -> Result<Rgba, RenderError> {
     let maps = archives.maps()?;
     let (cells, (cols, rows)) = grid_cells(maps.len(), steps)?;
     let triangle = maps.len() == 3;
@@ -248,7 +266,11 @@ pub fn render_grid(archives: &Archives, steps: usize, s: &RenderSettings) -> Res
         Composite::InkOnWhite => [1.0, 1.0, 1.0, 1.0],
         _ => [0.0, 0.0, 0.0, 1.0],
     };
-    let mut out = Rgba::filled(cols * cell_w + if triangle { s.width - cell_w } else { 0 }, rows * s.height, bg);
+    let mut out = Rgba::filled(
+        cols * cell_w + if triangle { s.width - cell_w } else { 0 },
+        rows * s.height,
+        bg,
+    );
     for (c, r, w) in cells {
         let img = render(archives.proxy()?, &maps, &w, s)?;
         out.blit(&img, c * cell_w, r * s.height);

@@ -33,7 +33,13 @@ fn split(positions: &[f32], dim: usize, depth: u32, node: Node, order: &mut [u32
         }
     }
     // Longest axis; the first of equal extents wins so the choice is deterministic.
-    let axis = (0..dim).fold(0, |best, k| if hi[k] - lo[k] > hi[best] - lo[best] { k } else { best });
+    let axis = (0..dim).fold(0, |best, k| {
+        if hi[k] - lo[k] > hi[best] - lo[best] {
+            k
+        } else {
+            best
+        }
+    });
     let (l, r) = node.children();
     let key = |i: &u32| (at(*i, axis), *i);
     order.select_nth_unstable_by(l.count as usize, |a, b| {
@@ -42,7 +48,10 @@ fn split(positions: &[f32], dim: usize, depth: u32, node: Node, order: &mut [u32
     });
     let (left, right) = order.split_at_mut(l.count as usize);
     if node.count >= PARALLEL_MIN {
-        rayon::join(|| split(positions, dim, depth, l, left), || split(positions, dim, depth, r, right));
+        rayon::join(
+            || split(positions, dim, depth, l, left),
+            || split(positions, dim, depth, r, right),
+        );
     } else {
         split(positions, dim, depth, l, left);
         split(positions, dim, depth, r, right);
@@ -79,15 +88,23 @@ mod tests {
         assert!(sorted.iter().enumerate().all(|(i, &v)| i as u32 == v));
         let tp = permute(&pos, dim, &order);
         let (l, r) = Node::root(n as u32).children();
-        let max_left = tp[..l.count as usize * 2].chunks(2).map(|p| p[0]).fold(f32::MIN, f32::max);
-        let min_right = tp[r.start as usize * 2..].chunks(2).map(|p| p[0]).fold(f32::MAX, f32::min);
+        let max_left = tp[..l.count as usize * 2]
+            .chunks(2)
+            .map(|p| p[0])
+            .fold(f32::MIN, f32::max);
+        let min_right = tp[r.start as usize * 2..]
+            .chunks(2)
+            .map(|p| p[0])
+            .fold(f32::MAX, f32::min);
         assert!(max_left <= min_right);
     }
 
     #[test]
     fn order_is_thread_independent() {
         let n = 40_000;
-        let pos: Vec<f32> = (0..2 * n).map(|i| ((i as f32) * 0.618_034).fract()).collect();
+        let pos: Vec<f32> = (0..2 * n)
+            .map(|i| ((i as f32) * 0.618_034).fract())
+            .collect();
         let run = |threads| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

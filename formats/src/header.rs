@@ -66,7 +66,8 @@ impl Header {
         if bytes[0..8] != MAGIC {
             return Err(FormatError::BadMagic);
         }
-        let u32_at = |o: usize| u32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]);
+        let u32_at =
+            |o: usize| u32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]);
         let version = u32_at(8);
         if version != FORMAT_VERSION {
             return Err(FormatError::WrongVersion { found: version });

@@ -9,7 +9,9 @@ use rkyv::rancor::Failure;
 /// Checks header, length, alignment and checksum; returns the payload.
 pub fn payload(bytes: &[u8], expected: ArchiveKind) -> Result<(Header, &[u8]), FormatError> {
     let header = match Header::decode(bytes) {
-        Err(FormatError::WrongKind { found, .. }) => return Err(FormatError::WrongKind { found, expected }),
+        Err(FormatError::WrongKind { found, .. }) => {
+            return Err(FormatError::WrongKind { found, expected })
+        }
         other => other?,
     };
     if header.kind != expected {
@@ -63,33 +65,50 @@ fn check_sizes(dim: u32, n: u32, depth: u32, leaf_size: Option<u32>) -> Result<u
 /// Opens proxy archive bytes: header, checksum, rkyv validation and field consistency.
 pub fn open_proxy(bytes: &[u8]) -> Result<&ArchivedProxy<'_>, FormatError> {
     let (_, payload) = payload(bytes, ArchiveKind::Proxy)?;
-    let p = rkyv::api::low::access::<ArchivedProxy, Failure>(payload).map_err(|_| FormatError::Invalid)?;
+    let p = rkyv::api::low::access::<ArchivedProxy, Failure>(payload)
+        .map_err(|_| FormatError::Invalid)?;
     let (dim, n) = (p.dim.to_native(), p.n.to_native());
     let nodes = check_sizes(dim, n, p.depth.to_native(), Some(p.leaf_size.to_native()))?;
     let d = dim as usize;
     check(p.positions.len() == n as usize * d, "positions")?;
     check(p.node_boxes.len() == nodes * 2 * d, "node_boxes")?;
-    check(all_finite(&p.positions) && all_finite(&p.node_boxes), "positions")?;
+    check(
+        all_finite(&p.positions) && all_finite(&p.node_boxes),
+        "positions",
+    )?;
     Ok(p)
 }
 
 /// Opens map archive bytes: header, checksum, rkyv validation and field consistency.
 pub fn open_map(bytes: &[u8]) -> Result<&ArchivedMap<'_>, FormatError> {
     let (_, payload) = payload(bytes, ArchiveKind::Map)?;
-    let m = rkyv::api::low::access::<ArchivedMap, Failure>(payload).map_err(|_| FormatError::Invalid)?;
+    let m = rkyv::api::low::access::<ArchivedMap, Failure>(payload)
+        .map_err(|_| FormatError::Invalid)?;
     let (dim, n) = (m.dim.to_native(), m.n.to_native());
     let nodes = check_sizes(dim, n, m.depth.to_native(), None)?;
     let d = dim as usize;
     check(m.positions.len() == n as usize * d, "positions")?;
     check(m.node_boxes.len() == nodes * 2 * d, "node_boxes")?;
     let has_color = !m.colors.is_empty();
-    check(!has_color || m.colors.len() == n as usize * COLOR_CHANNELS, "colors")?;
-    check(m.node_colors.len() == if has_color { nodes * COLOR_CHANNELS } else { 0 }, "node_colors")?;
-    check(Composite::from_code(m.composite.to_native()).is_some(), "composite")?;
+    check(
+        !has_color || m.colors.len() == n as usize * COLOR_CHANNELS,
+        "colors",
+    )?;
+    check(
+        m.node_colors.len() == if has_color { nodes * COLOR_CHANNELS } else { 0 },
+        "node_colors",
+    )?;
+    check(
+        Composite::from_code(m.composite.to_native()).is_some(),
+        "composite",
+    )?;
     let mean = m.mean_mass.to_native();
     check(mean.is_finite() && mean > 0.0, "mean_mass")?;
     check(
-        all_finite(&m.positions) && all_finite(&m.node_boxes) && all_finite(&m.colors) && all_finite(&m.node_colors),
+        all_finite(&m.positions)
+            && all_finite(&m.node_boxes)
+            && all_finite(&m.colors)
+            && all_finite(&m.node_colors),
         "positions",
     )?;
     Ok(m)

@@ -90,14 +90,17 @@ impl Node {
     }
 }
 
-
 /// Fills `out` (`node_count(depth) * 2 * dim`) with the box (`lo` then `hi`) of the points of every
 /// node; `positions` holds `n * dim` coordinates in tree order. Nodes without points get zeros.
 /// Baker and tests share this so a map's boxes always match the runtime's traversal.
 pub fn fill_node_boxes(positions: &[f32], dim: usize, depth: u32, out: &mut [f32]) {
     let n = positions.len() / dim;
     let b = 2 * dim;
-    assert_eq!(out.len() as u64, node_count(depth) * b as u64, "node box buffer size");
+    assert_eq!(
+        out.len() as u64,
+        node_count(depth) * b as u64,
+        "node box buffer size"
+    );
     fill_boxes_rec(positions, dim, depth, Node::root(n as u32), out);
 }
 
@@ -139,7 +142,11 @@ fn fill_boxes_rec(positions: &[f32], dim: usize, depth: u32, node: Node, out: &m
 /// identical on every machine and thread count.
 pub fn fill_node_sums(values: &[f32], channels: usize, depth: u32, out: &mut [f32]) {
     let n = values.len() / channels;
-    assert_eq!(out.len() as u64, node_count(depth) * channels as u64, "node sum buffer size");
+    assert_eq!(
+        out.len() as u64,
+        node_count(depth) * channels as u64,
+        "node sum buffer size"
+    );
     assert!(channels <= 4, "at most 4 channels");
     sums_rec(values, channels, depth, Node::root(n as u32), out);
 }
@@ -189,7 +196,10 @@ mod tests {
                 let d = depth(n, leaf);
                 let mut seen = [0u32; 200];
                 walk(Node::root(n), d, leaf, &mut seen);
-                assert!(seen[..n as usize].iter().all(|&s| s == 1), "n={n} leaf={leaf}");
+                assert!(
+                    seen[..n as usize].iter().all(|&s| s == 1),
+                    "n={n} leaf={leaf}"
+                );
                 // Minimal depth: one level less would overflow some leaf.
                 if d > 0 {
                     assert!(n.div_ceil(1 << (d - 1)) > leaf);

@@ -44,4 +44,3 @@ pub fn aligned_copy(bytes: &[u8]) -> AlignedVec<16> {
     v.extend_from_slice(bytes);
     v
 }
-

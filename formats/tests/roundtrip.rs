@@ -13,7 +13,9 @@ fn sample_archives() -> (Vec<u8>, Vec<u8>) {
     let leaf = 4;
     let d = depth(n, leaf);
     let nodes = node_count(d) as usize;
-    let pos: Vec<f32> = (0..n as usize * dim).map(|i| (i as f32 * 0.618).fract()).collect();
+    let pos: Vec<f32> = (0..n as usize * dim)
+        .map(|i| (i as f32 * 0.618).fract())
+        .collect();
     let mut boxes = vec![0.0; nodes * 2 * dim];
     fill_node_boxes(&pos, dim, d, &mut boxes);
     let proxy = Proxy {
@@ -45,7 +47,10 @@ fn sample_archives() -> (Vec<u8>, Vec<u8>) {
         solver_report: "none",
         transport_cost: 0.0,
     };
-    (encode_proxy(&proxy).unwrap().to_vec(), encode_map(&map).unwrap().to_vec())
+    (
+        encode_proxy(&proxy).unwrap().to_vec(),
+        encode_map(&map).unwrap().to_vec(),
+    )
 }
 
 #[test]
@@ -58,7 +63,10 @@ fn round_trip() {
     assert_eq!(proxy.positions.len(), 74);
     let map = open_map(&m).unwrap();
     assert_eq!(&*map.name, "m");
-    assert_eq!(map.node_colors[0].to_native(), (0..37).map(|i| 3 * i).sum::<i32>() as f32);
+    assert_eq!(
+        map.node_colors[0].to_native(),
+        (0..37).map(|i| 3 * i).sum::<i32>() as f32
+    );
     // A proxy is not a map.
     assert!(matches!(open_map(&p), Err(FormatError::WrongKind { .. })));
 }
@@ -67,19 +75,31 @@ fn round_trip() {
 fn damage_is_refused_without_panic() {
     let (_, m) = sample_archives();
     for cut in 0..m.len() {
-        assert!(open_map(&aligned_copy(&m[..cut])).is_err(), "truncated at {cut}");
+        assert!(
+            open_map(&aligned_copy(&m[..cut])).is_err(),
+            "truncated at {cut}"
+        );
     }
     for i in 0..m.len() {
         for bit in [0u8, 3, 7] {
             let mut b = m.clone();
             b[i] ^= 1 << bit;
-            assert!(open_map(&aligned_copy(&b)).is_err(), "flip at byte {i} bit {bit}");
+            assert!(
+                open_map(&aligned_copy(&b)).is_err(),
+                "flip at byte {i} bit {bit}"
+            );
         }
     }
     let mut v = m.clone();
     v[8] = 2;
-    assert!(matches!(open_map(&aligned_copy(&v)), Err(FormatError::WrongVersion { found: 2 })));
+    assert!(matches!(
+        open_map(&aligned_copy(&v)),
+        Err(FormatError::WrongVersion { found: 2 })
+    ));
     let mut t = m.clone();
     t.extend_from_slice(&[0; 16]);
-    assert!(matches!(open_map(&aligned_copy(&t)), Err(FormatError::LengthMismatch { .. })));
+    assert!(matches!(
+        open_map(&aligned_copy(&t)),
+        Err(FormatError::LengthMismatch { .. })
+    ));
 }

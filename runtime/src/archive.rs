@@ -72,8 +72,12 @@ impl<'a> Map<'a> {
     pub fn open(bytes: &'a [u8]) -> Result<Self, Error> {
         let archived = open_map(bytes)?;
         // open_map validated the code; Additive is unreachable but keeps this panic-free.
-        let composite = Composite::from_code(archived.composite.to_native()).unwrap_or(Composite::Additive);
-        Ok(Self { archived, composite })
+        let composite =
+            Composite::from_code(archived.composite.to_native()).unwrap_or(Composite::Additive);
+        Ok(Self {
+            archived,
+            composite,
+        })
     }
 
     /// Input name.

@@ -8,8 +8,8 @@
 use crate::archive::{Map, Proxy};
 use crate::error::Error;
 use crate::MAX_DIM;
-use otbake_formats::tree::Node;
 use otbake_formats::rkyv::rend::f32_le;
+use otbake_formats::tree::Node;
 
 /// How far the weights may sum from 1.
 pub const WEIGHT_SUM_TOLERANCE: f32 = 1e-4;
@@ -69,13 +69,19 @@ impl<'a, 'm> Blend<'a, 'm> {
             }
             let a = m.archived();
             if m.dim() != proxy.dim() {
-                return Err(Error::ShapeMismatch { map: i, field: "dim" });
+                return Err(Error::ShapeMismatch {
+                    map: i,
+                    field: "dim",
+                });
             }
             if m.n() != proxy.n() {
                 return Err(Error::ShapeMismatch { map: i, field: "n" });
             }
             if a.depth.to_native() != proxy.depth() {
-                return Err(Error::ShapeMismatch { map: i, field: "depth" });
+                return Err(Error::ShapeMismatch {
+                    map: i,
+                    field: "depth",
+                });
             }
         }
         Ok(Self {
@@ -157,7 +163,9 @@ impl<'a, 'm> Blend<'a, 'm> {
         let d = self.dim;
         let mut out = [0.0; MAX_DIM];
         for (k, o) in out.iter_mut().enumerate().take(d) {
-            *o = mix(weights, self.maps, |m| at(&m.archived().positions, i * d + k));
+            *o = mix(weights, self.maps, |m| {
+                at(&m.archived().positions, i * d + k)
+            });
         }
         out
     }
@@ -183,8 +191,12 @@ impl<'a, 'm> Blend<'a, 'm> {
         let mut lo = [0.0; MAX_DIM];
         let mut hi = [0.0; MAX_DIM];
         for k in 0..d {
-            lo[k] = mix(weights, self.maps, |m| at(&m.archived().node_boxes, base + k));
-            hi[k] = mix(weights, self.maps, |m| at(&m.archived().node_boxes, base + d + k));
+            lo[k] = mix(weights, self.maps, |m| {
+                at(&m.archived().node_boxes, base + k)
+            });
+            hi[k] = mix(weights, self.maps, |m| {
+                at(&m.archived().node_boxes, base + d + k)
+            });
         }
         (lo, hi)
     }
@@ -197,7 +209,9 @@ impl<'a, 'm> Blend<'a, 'm> {
         }
         let mut out = [0.0; 3];
         for (c, o) in out.iter_mut().enumerate() {
-            *o = mix(weights, self.maps, |m| at(&m.archived().node_colors, node.index as usize * 3 + c));
+            *o = mix(weights, self.maps, |m| {
+                at(&m.archived().node_colors, node.index as usize * 3 + c)
+            });
         }
         out
     }

@@ -72,7 +72,10 @@ pub fn exp(x: f32) -> f32 {
     let kf = (x * core::f32::consts::LOG2_E - 0.5) as i32 as f32; // x <= 0: truncation toward 0 of (v - 0.5) rounds
     let r = (x - kf * LN2_HI) - kf * LN2_LO;
     // Degree-6 Taylor polynomial of e^r on |r| <= 0.35: error < 2e-8 relative.
-    let p = 1.0 + r * (1.0 + r * (0.5 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
     let k = kf as i32;
     f32::from_bits(((k + 127) as u32) << 23) * p
 }

@@ -20,17 +20,29 @@ pub struct SplatTarget<'b> {
 impl Blend<'_, '_> {
     /// Adds the kernel reconstruction of the blend for `weights` to every cell center of `target`:
     /// the result equals a point query at each cell center (up to float summation order).
-    pub fn splat(&self, weights: &[f32], kernel: Kernel, target: SplatTarget<'_>) -> Result<(), Error> {
+    pub fn splat(
+        &self,
+        weights: &[f32],
+        kernel: Kernel,
+        target: SplatTarget<'_>,
+    ) -> Result<(), Error> {
         self.check_weights(weights)?;
         let d = self.dim;
         let kp = kernel.prepare(d).ok_or(Error::BadSigma)?;
-        let SplatTarget { res, density, mut color } = target;
+        let SplatTarget {
+            res,
+            density,
+            mut color,
+        } = target;
         let mut cells: usize = 1;
         for &r in &res[..d] {
-            cells = cells.checked_mul(r as usize).filter(|_| r > 0).ok_or(Error::BufferSize {
-                expected: 0,
-                found: density.len(),
-            })?;
+            cells = cells
+                .checked_mul(r as usize)
+                .filter(|_| r > 0)
+                .ok_or(Error::BufferSize {
+                    expected: 0,
+                    found: density.len(),
+                })?;
         }
         if density.len() != cells {
             return Err(Error::BufferSize {

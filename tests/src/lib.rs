@@ -17,16 +17,24 @@ pub fn otbake_bin() -> PathBuf {
     BIN.get_or_init(|| {
         // target/<profile>/deps/<test-exe> → target/<profile>/otbake
         let exe = std::env::current_exe().expect("test executable path");
-        let profile_dir = exe.parent().and_then(Path::parent).expect("target/<profile>");
+        let profile_dir = exe
+            .parent()
+            .and_then(Path::parent)
+            .expect("target/<profile>");
         let bin = profile_dir.join(format!("otbake{}", std::env::consts::EXE_SUFFIX));
         if !bin.exists() {
             let release = profile_dir.file_name().is_some_and(|n| n == "release");
             let mut cargo = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
-            cargo.args(["build", "-p", "otbake", "--bin", "otbake"]).current_dir(repo_root());
+            cargo
+                .args(["build", "-p", "otbake", "--bin", "otbake"])
+                .current_dir(repo_root());
             if release {
                 cargo.arg("--release");
             }
-            assert!(cargo.status().expect("run cargo build").success(), "building otbake failed");
+            assert!(
+                cargo.status().expect("run cargo build").success(),
+                "building otbake failed"
+            );
         }
         bin
     })
@@ -35,7 +43,10 @@ pub fn otbake_bin() -> PathBuf {
 
 /// A fresh, empty scratch directory for one test.
 pub fn scratch(name: &str) -> PathBuf {
-    let dir = repo_root().join("target").join("otbake-tests").join(format!("{name}-{}", std::process::id()));
+    let dir = repo_root()
+        .join("target")
+        .join("otbake-tests")
+        .join(format!("{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
@@ -43,7 +54,11 @@ pub fn scratch(name: &str) -> PathBuf {
 
 /// Runs `otbake` with `args` in `dir`.
 pub fn otbake(dir: &Path, args: &[&str]) -> Output {
-    Command::new(otbake_bin()).args(args).current_dir(dir).output().expect("run otbake")
+    Command::new(otbake_bin())
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run otbake")
 }
 
 /// Runs `otbake` and panics with its stderr unless it succeeds.
@@ -61,8 +76,14 @@ pub fn otbake_ok(dir: &Path, args: &[&str]) -> Output {
 pub fn otbake_err(dir: &Path, args: &[&str]) -> String {
     let out = otbake(dir, args);
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "otbake {args:?} should fail but succeeded:\n{err}");
-    assert!(err.starts_with("error: "), "errors are one clear line, not a panic:\n{err}");
+    assert!(
+        !out.status.success(),
+        "otbake {args:?} should fail but succeeded:\n{err}"
+    );
+    assert!(
+        err.starts_with("error: "),
+        "errors are one clear line, not a panic:\n{err}"
+    );
     assert!(!err.contains("panicked"), "otbake panicked:\n{err}");
     err
 }
@@ -80,7 +101,10 @@ pub fn write_gaussian_exr(path: &Path, size: usize, mean: [f64; 2], sigma: [f64;
     let mut img = Rgba::filled(size, size, [0.0, 0.0, 0.0, 1.0]);
     for y in 0..size {
         for x in 0..size {
-            let c = [(x as f64 + 0.5) / size as f64, (y as f64 + 0.5) / size as f64];
+            let c = [
+                (x as f64 + 0.5) / size as f64,
+                (y as f64 + 0.5) / size as f64,
+            ];
             let q: f64 = (0..2).map(|k| ((c[k] - mean[k]) / sigma[k]).powi(2)).sum();
             let v = (-0.5 * q).exp() as f32;
             let i = (y * size + x) * 4;
@@ -99,7 +123,11 @@ pub fn temp_files(dir: &Path) -> Vec<PathBuf> {
             let p = e.path();
             if p.is_dir() {
                 stack.push(p);
-            } else if p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.contains(".tmp-")) {
+            } else if p
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.contains(".tmp-"))
+            {
                 found.push(p);
             }
         }
@@ -109,5 +137,8 @@ pub fn temp_files(dir: &Path) -> Vec<PathBuf> {
 
 /// Relative path from `dir` to the shared data directory, for manifests written into scratch dirs.
 pub fn shared_data() -> PathBuf {
-    repo_root().join("../shared/data").canonicalize().expect("../shared/data beside the repository")
+    repo_root()
+        .join("../shared/data")
+        .canonicalize()
+        .expect("../shared/data beside the repository")
 }

@@ -22,8 +22,15 @@ fn duck() -> String {
 fn assert_nothing_written(dir: &Path) {
     assert!(temp_files(dir).is_empty(), "temporary files left behind");
     let out = dir.join("out");
-    let written: Vec<_> = std::fs::read_dir(&out).into_iter().flatten().flatten().collect();
-    assert!(written.is_empty(), "outputs written despite the error: {written:?}");
+    let written: Vec<_> = std::fs::read_dir(&out)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .collect();
+    assert!(
+        written.is_empty(),
+        "outputs written despite the error: {written:?}"
+    );
 }
 
 #[test]
@@ -31,8 +38,11 @@ fn missing_input_file_names_manifest_line_and_path() {
     let dir = scratch("bad-missing");
     let m = manifest_with(&dir, "500", "nope.png", "");
     let err = otbake_err(&dir, &["bake", &m]);
-    assert!(err.contains("m.toml:15:8"), "{err}");
-    assert!(err.contains("nope.png") && err.contains("does not exist"), "{err}");
+    assert!(err.contains("m.toml:13:8"), "{err}");
+    assert!(
+        err.contains("nope.png") && err.contains("does not exist"),
+        "{err}"
+    );
     assert_nothing_written(&dir);
 }
 
@@ -42,7 +52,10 @@ fn unsupported_extension_lists_supported_ones() {
     std::fs::write(dir.join("a.gif"), b"GIF89a").unwrap();
     let m = manifest_with(&dir, "500", "a.gif", "");
     let err = otbake_err(&dir, &["bake", &m]);
-    assert!(err.contains("m.toml:15") && err.contains(".png, .jpg, .jpeg, .exr"), "{err}");
+    assert!(
+        err.contains("m.toml:13") && err.contains(".png, .jpg, .jpeg, .exr"),
+        "{err}"
+    );
     assert_nothing_written(&dir);
 }
 
@@ -51,7 +64,10 @@ fn unknown_manifest_key_is_located() {
     let dir = scratch("bad-key");
     let m = manifest_with(&dir, "500", &duck(), "sigmaa = 0.2");
     let err = otbake_err(&dir, &["bake", &m]);
-    assert!(err.contains("m.toml:7:1") && err.contains("sigmaa"), "{err}");
+    assert!(
+        err.contains("m.toml:7:1") && err.contains("sigmaa"),
+        "{err}"
+    );
     assert_nothing_written(&dir);
 }
 
@@ -90,13 +106,20 @@ fn image_without_mass_is_refused() {
     write_manifest(&dir, "m.toml", &body);
     let err = otbake_err(&dir, &["bake", "m.toml"]);
     assert!(err.contains("black.exr"), "{err}");
-    assert!(err.to_lowercase().contains("zero") || err.contains("mass"), "{err}");
+    assert!(
+        err.to_lowercase().contains("zero") || err.contains("mass"),
+        "{err}"
+    );
     assert_nothing_written(&dir);
 }
 
 #[test]
 fn nan_inf_and_negative_pixels_are_refused_with_their_position() {
-    for (name, bad) in [("nan.exr", f32::NAN), ("inf.exr", f32::INFINITY), ("neg.exr", -1.0)] {
+    for (name, bad) in [
+        ("nan.exr", f32::NAN),
+        ("inf.exr", f32::INFINITY),
+        ("neg.exr", -1.0),
+    ] {
         let dir = scratch("bad-exr");
         let file = exr_with(&dir, name, |x, y| if (x, y) == (5, 9) { bad } else { 0.5 });
         let body = format!(
@@ -106,7 +129,10 @@ fn nan_inf_and_negative_pixels_are_refused_with_their_position() {
         write_manifest(&dir, "m.toml", &body);
         let err = otbake_err(&dir, &["bake", "m.toml"]);
         assert!(err.contains(name), "{err}");
-        assert!(err.contains('5') && err.contains('9'), "pixel (5, 9) not named: {err}");
+        assert!(
+            err.contains('5') && err.contains('9'),
+            "pixel (5, 9) not named: {err}"
+        );
         assert_nothing_written(&dir);
     }
 }
@@ -130,8 +156,23 @@ fn bad_weights_are_refused_and_write_nothing() {
         ("0.5,0.6", "sum"),
         ("NaN,1", "weight"),
     ] {
-        let err = otbake_err(&dir, &["blend", "m.toml", "--weights", weights, "--size", "8x8", "-o", "x.png"]);
-        assert!(err.to_lowercase().contains(expect), "--weights {weights}: {err}");
+        let err = otbake_err(
+            &dir,
+            &[
+                "blend",
+                "m.toml",
+                "--weights",
+                weights,
+                "--size",
+                "8x8",
+                "-o",
+                "x.png",
+            ],
+        );
+        assert!(
+            err.to_lowercase().contains(expect),
+            "--weights {weights}: {err}"
+        );
         assert!(!dir.join("x.png").exists());
     }
     assert!(temp_files(&dir).is_empty());
@@ -148,7 +189,10 @@ fn damaged_archives_are_explained_by_inspect() {
 
     std::fs::write(dir.join("trunc.otb"), &good[..good.len() - 7]).unwrap();
     let err = otbake_err(&dir, &["inspect", "trunc.otb"]);
-    assert!(err.contains("trunc.otb") && err.contains("truncated"), "{err}");
+    assert!(
+        err.contains("trunc.otb") && err.contains("truncated"),
+        "{err}"
+    );
 
     let mut flipped = good.clone();
     let at = good.len() / 2;

@@ -41,7 +41,12 @@ fn check(solver: &str, samples: usize) {
     let archives = Archives::load(&m).unwrap();
     let maps = archives.maps().unwrap();
     let blend = Blend::new(archives.proxy().unwrap(), &maps).unwrap();
-    for w in [[1.0f32, 0.0, 0.0], [0.5, 0.5, 0.0], [0.25, 0.25, 0.5], [0.1, 0.3, 0.6]] {
+    for w in [
+        [1.0f32, 0.0, 0.0],
+        [0.5, 0.5, 0.0],
+        [0.25, 0.25, 0.5],
+        [0.1, 0.3, 0.6],
+    ] {
         let points: Vec<[f32; 2]> = (0..blend.n())
             .map(|i| {
                 let s = blend.sample(&w, i).unwrap();
@@ -53,7 +58,11 @@ fn check(solver: &str, samples: usize) {
             let want_mean: f64 = (0..3).map(|i| w[i] as f64 * MEANS[i][k]).sum();
             let want_std: f64 = (0..3).map(|i| w[i] as f64 * SIGMAS[i][k]).sum();
             // Tolerances: sampling error of n stratified points plus the pixel grid (1/128).
-            assert!((mean[k] - want_mean).abs() < 2e-3, "{solver} w={w:?} axis {k}: mean {} vs {want_mean}", mean[k]);
+            assert!(
+                (mean[k] - want_mean).abs() < 2e-3,
+                "{solver} w={w:?} axis {k}: mean {} vs {want_mean}",
+                mean[k]
+            );
             assert!(
                 (std[k] / want_std - 1.0).abs() < 0.02,
                 "{solver} w={w:?} axis {k}: std {} vs {want_std}",

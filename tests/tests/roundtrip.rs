@@ -14,7 +14,7 @@ fn shapes_manifest(name: &str, samples: usize, seed: u64) -> Manifest {
     let dir = scratch(name);
     let data = shared_data();
     let mut body = format!(
-        "[output]\ndir = \"out\"\n[proxy]\nkind = \"gaussian\"\nsamples = {samples}\nseed = {seed}\n[solver]\nkind = \"sliced\"\niterations = 16\n"
+        "[output]\ndir = \"out\"\n[proxy]\nkind = \"gaussian\"\nsamples = {samples}\nseed = {seed}\n[solver]\nkind = \"sliced\"\n"
     );
     for s in ["redcross", "tooth", "heart", "duck"] {
         body += &format!(
@@ -33,11 +33,16 @@ fn point_and_range_queries_equal_brute_force_on_a_real_bake() {
     let maps = a.maps().unwrap();
     let blend = Blend::new(a.proxy().unwrap(), &maps).unwrap();
     let w = [0.1f32, 0.2, 0.3, 0.4];
-    let pts: Vec<_> = (0..blend.n()).map(|i| blend.sample(&w, i).unwrap()).collect();
+    let pts: Vec<_> = (0..blend.n())
+        .map(|i| blend.sample(&w, i).unwrap())
+        .collect();
     let sigma = 0.02f32;
     let norm = 1.0 / (2.0 * std::f32::consts::PI * sigma * sigma) / (1.0 - (-4.5f32).exp());
     for q in 0..50 {
-        let p = [0.1 + 0.8 * ((q as f32 * 0.618) % 1.0), 0.1 + 0.8 * ((q as f32 * 0.382) % 1.0)];
+        let p = [
+            0.1 + 0.8 * ((q as f32 * 0.618) % 1.0),
+            0.1 + 0.8 * ((q as f32 * 0.382) % 1.0),
+        ];
         let brute: f32 = pts
             .iter()
             .map(|s| {
@@ -51,7 +56,11 @@ fn point_and_range_queries_equal_brute_force_on_a_real_bake() {
             .sum::<f32>()
             / pts.len() as f32;
         let v = blend.point(&w, &p, Kernel { sigma }).unwrap();
-        assert!((v.density - brute).abs() <= 1e-3 * brute.max(1.0), "at {p:?}: {} vs {brute}", v.density);
+        assert!(
+            (v.density - brute).abs() <= 1e-3 * brute.max(1.0),
+            "at {p:?}: {} vs {brute}",
+            v.density
+        );
         let (lo, hi) = ([p[0] - 0.1, p[1] - 0.05], [p[0] + 0.05, p[1] + 0.1]);
         let count = pts
             .iter()
@@ -76,7 +85,12 @@ fn splat_and_point_query_render_the_same_image() {
     };
     let q = render(a.proxy().unwrap(), &maps, &w, &s(Method::Query)).unwrap();
     let sp = render(a.proxy().unwrap(), &maps, &w, &s(Method::Splat)).unwrap();
-    let max = q.pixels.iter().zip(&sp.pixels).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+    let max = q
+        .pixels
+        .iter()
+        .zip(&sp.pixels)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
     assert!(max < 1e-3, "largest pixel difference {max}");
     // The image is not trivially blank: ink (dark pixels) and paper (white) both appear.
     assert!(q.pixels.chunks(4).any(|p| p[0] < 0.2) && q.pixels.chunks(4).any(|p| p[0] > 0.99));
@@ -102,7 +116,10 @@ fn maps_of_another_proxy_and_damaged_bytes_are_refused() {
     for at in (0..bytes.len()).step_by(31) {
         let mut b = bytes.clone();
         b[at] ^= 0x41;
-        assert!(Map::open(&aligned_copy(&b)).is_err(), "flip at {at} accepted");
+        assert!(
+            Map::open(&aligned_copy(&b)).is_err(),
+            "flip at {at} accepted"
+        );
     }
 }
 
@@ -125,7 +142,10 @@ fn bake_is_incremental_and_thread_count_independent() {
         let r = bake(&m, &BakeOptions::default()).unwrap();
         assert!(r.products.iter().all(|p| p.status == Status::Cached));
     }
-    assert!(outputs.windows(2).all(|w| w[0] == w[1]), "archives differ between thread counts");
+    assert!(
+        outputs.windows(2).all(|w| w[0] == w[1]),
+        "archives differ between thread counts"
+    );
 }
 
 #[test]
@@ -135,14 +155,30 @@ fn shipped_small_manifest_bakes_and_renders_a_grid() {
     let out = dir.join("grid.png");
     otbake_ok(
         &dir,
-        &["grid", manifest.to_str().unwrap(), "--steps", "3", "--size", "32x32", "-o", out.to_str().unwrap()],
+        &[
+            "grid",
+            manifest.to_str().unwrap(),
+            "--steps",
+            "3",
+            "--size",
+            "32x32",
+            "-o",
+            out.to_str().unwrap(),
+        ],
     );
     let img = image::open(&out).unwrap();
     assert_eq!((img.width(), img.height()), (96, 96));
     let points = dir.join("duck.npy");
     otbake_ok(
         &dir,
-        &["points", manifest.to_str().unwrap(), "--input", "duck", "-o", points.to_str().unwrap()],
+        &[
+            "points",
+            manifest.to_str().unwrap(),
+            "--input",
+            "duck",
+            "-o",
+            points.to_str().unwrap(),
+        ],
     );
     let bytes = std::fs::read(&points).unwrap();
     assert!(String::from_utf8_lossy(&bytes[..128]).contains("'shape': (2000, 4)"));
