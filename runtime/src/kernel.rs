@@ -33,7 +33,7 @@ impl Kernel {
     /// so small that its normalization overflows.
     pub fn prepare(&self, dim: usize) -> Option<Prepared> {
         let s = self.sigma;
-        if !(s.is_finite() && s > 0.0) || !(1..=4).contains(&dim) {
+        if !(s.is_finite() && s > 0.0 && (1..=4).contains(&dim)) {
             return None;
         }
         let mut sd = 1.0f32;

@@ -1,0 +1,131 @@
+//! Synthetic archives for runtime tests: random points in any order (the runtime's answers must not
+//! depend on how well the tree fits the points, only on its boxes being right).
+#![allow(dead_code)]
+
+use otbake_formats::map::Map as MapData;
+use otbake_formats::proxy::Proxy as ProxyData;
+use otbake_formats::tree::{depth, fill_node_boxes, fill_node_sums, node_count};
+use otbake_formats::write::{encode_map, encode_proxy};
+use rkyv::util::AlignedVec;
+
+/// A tiny deterministic generator (SplitMix64) so tests need no RNG dependency.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    pub fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+pub struct Fixture {
+    pub dim: usize,
+    pub n: usize,
+    pub proxy: AlignedVec<16>,
+    pub maps: Vec<AlignedVec<16>>,
+    /// Per map: positions and colors, as written.
+    pub positions: Vec<Vec<f32>>,
+    pub colors: Vec<Vec<f32>>,
+    pub mean_mass: Vec<f32>,
+}
+
+pub fn fixture(seed: u64, n: usize, dim: usize, leaf: u32, k: usize, key: [u8; 32]) -> Fixture {
+    let mut rng = Rng(seed);
+    let d = depth(n as u32, leaf);
+    let nodes = node_count(d) as usize;
+    let proxy_pos: Vec<f32> = (0..n * dim).map(|_| rng.unit()).collect();
+    let mut boxes = vec![0.0; nodes * 2 * dim];
+    fill_node_boxes(&proxy_pos, dim, d, &mut boxes);
+    let proxy = encode_proxy(&ProxyData {
+        dim: dim as u32,
+        n: n as u32,
+        leaf_size: leaf,
+        depth: d,
+        key,
+        description: "test",
+        positions: &proxy_pos,
+        node_boxes: &boxes,
+    })
+    .unwrap();
+    let mut f = Fixture {
+        dim,
+        n,
+        proxy,
+        maps: vec![],
+        positions: vec![],
+        colors: vec![],
+        mean_mass: vec![],
+    };
+    for m in 0..k {
+        // Maps cluster points so queries see dense and empty regions alike.
+        let center: Vec<f32> = (0..dim).map(|_| 0.2 + 0.6 * rng.unit()).collect();
+        let pos: Vec<f32> = (0..n * dim)
+            .map(|i| {
+                (center[i % dim] + 0.3 * (rng.unit() - 0.5) * (1.0 + rng.unit())).clamp(0.0, 1.0)
+            })
+            .collect();
+        let colors: Vec<f32> = (0..n * 3).map(|_| rng.unit() * 2.0).collect();
+        let mut b = vec![0.0; nodes * 2 * dim];
+        fill_node_boxes(&pos, dim, d, &mut b);
+        let mut sums = vec![0.0; nodes * 3];
+        fill_node_sums(&colors, 3, d, &mut sums);
+        let mean = 0.1 + rng.unit();
+        f.maps.push(
+            encode_map(&MapData {
+                dim: dim as u32,
+                n: n as u32,
+                depth: d,
+                proxy_key: key,
+                key: [m as u8; 32],
+                name: "m",
+                composite: 0,
+                mean_mass: mean,
+                positions: &pos,
+                colors: &colors,
+                node_boxes: &b,
+                node_colors: &sums,
+                solver_report: "",
+                transport_cost: 0.0,
+            })
+            .unwrap(),
+        );
+        f.positions.push(pos);
+        f.colors.push(colors);
+        f.mean_mass.push(mean);
+    }
+    f
+}
+
+impl Fixture {
+    /// Blended point i, computed the way the runtime documents (Σ w_k x_k in map order).
+    pub fn blended(&self, w: &[f32], i: usize) -> (Vec<f32>, [f32; 3]) {
+        let mut p = vec![0.0f32; self.dim];
+        let mut c = [0.0f32; 3];
+        for (k, wk) in w.iter().enumerate() {
+            for a in 0..self.dim {
+                p[a] += wk * self.positions[k][i * self.dim + a];
+            }
+            for a in 0..3 {
+                c[a] += wk * self.colors[k][i * 3 + a];
+            }
+        }
+        (p, c)
+    }
+
+    pub fn mean_mass(&self, w: &[f32]) -> f32 {
+        w.iter().zip(&self.mean_mass).map(|(a, b)| a * b).sum()
+    }
+}
+
+/// Normalized random weights.
+pub fn weights(rng: &mut Rng, k: usize) -> Vec<f32> {
+    let raw: Vec<f32> = (0..k).map(|_| rng.unit() + 0.01).collect();
+    let s: f32 = raw.iter().sum();
+    raw.iter().map(|v| v / s).collect()
+}

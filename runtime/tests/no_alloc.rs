@@ -1,0 +1,80 @@
+//! Proof that queries never allocate: a counting global allocator sees zero allocations across
+//! open, blend construction and every query.
+
+mod common;
+
+use otbake_runtime::{Blend, Kernel, Map, Proxy, SplatTarget};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn queries_do_not_allocate() {
+    let f = common::fixture(7, 500, 2, 4, 3, [3; 32]);
+    let mut density = vec![0.0f32; 32 * 32];
+    let mut color = vec![0.0f32; 32 * 32 * 3];
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+
+    let proxy = Proxy::open(&f.proxy).unwrap();
+    let maps = [
+        Map::open(&f.maps[0]).unwrap(),
+        Map::open(&f.maps[1]).unwrap(),
+        Map::open(&f.maps[2]).unwrap(),
+    ];
+    let blend = Blend::new(proxy, &maps).unwrap();
+    let w = [0.2f32, 0.3, 0.5];
+    let mut acc = 0.0f32;
+    for q in 0..100 {
+        let p = [(q as f32 * 0.37) % 1.0, (q as f32 * 0.61) % 1.0];
+        acc += blend.point(&w, &p, Kernel { sigma: 0.03 }).unwrap().density;
+        acc += blend
+            .range(&w, &[p[0] - 0.1, p[1] - 0.1], &[p[0] + 0.1, p[1] + 0.1])
+            .unwrap()
+            .mass;
+        acc += blend.sample(&w, q).unwrap().position[0];
+        // Errors do not allocate either.
+        assert!(blend
+            .point(&[0.5, 0.5, 0.5], &p, Kernel { sigma: 0.03 })
+            .is_err());
+    }
+    blend
+        .splat(
+            &w,
+            Kernel { sigma: 0.02 },
+            SplatTarget {
+                res: [32, 32, 1, 1],
+                density: &mut density,
+                color: Some(&mut color),
+            },
+        )
+        .unwrap();
+
+    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(
+        after - before,
+        0,
+        "the runtime allocated {} times",
+        after - before
+    );
+    assert!(acc > 0.0 && density.iter().sum::<f32>() > 0.0);
+}
