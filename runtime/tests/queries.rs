@@ -1,5 +1,6 @@
 //! Runtime queries equal brute force over every blended point, for random archives, dimensions,
 //! leaf sizes, map counts and weights (property tests).
+#![allow(clippy::needless_range_loop)] // coordinate loops read clearer with indices
 
 mod common;
 

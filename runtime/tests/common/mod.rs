@@ -1,6 +1,6 @@
 //! Synthetic archives for runtime tests: random points in any order (the runtime's answers must not
 //! depend on how well the tree fits the points, only on its boxes being right).
-#![allow(dead_code)]
+#![allow(dead_code, clippy::needless_range_loop)]
 
 use otbake_formats::map::Map as MapData;
 use otbake_formats::proxy::Proxy as ProxyData;
