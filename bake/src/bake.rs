@@ -289,11 +289,7 @@ fn build_map(
             source,
         })?;
         let r = &solution.report;
-        let line = format!(
-            "{} cost={:.6e} iterations={} converged={} residual={:.3e} {}",
-            r.solver, r.cost, r.iterations, r.converged, r.residual, r.detail
-        );
-        (solution.mapped, line, r.cost)
+        (solution.mapped, r.detail.clone(), r.cost)
     };
     let colors = if grid.ratio.is_empty() {
         Vec::new()
