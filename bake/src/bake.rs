@@ -49,14 +49,9 @@ pub struct BakeReport {
     pub products: Vec<Product>,
 }
 
-/// The dimension of an input, from its file type (images are 2D).
-fn input_dim(_spec: &InputSpec) -> usize {
-    2
-}
-
 /// Decodes an input into its density grid.
 pub fn load_input(spec: &InputSpec) -> Result<Grid, BakeError> {
-    input::load_image(&spec.path, spec.density).map_err(|source| BakeError::Input {
+    input::load(&spec.path, spec.density).map_err(|source| BakeError::Input {
         name: spec.name.clone(),
         source,
     })
@@ -120,9 +115,9 @@ pub struct BakeOptions {
 
 /// Bakes everything a manifest declares that is not already current on disk.
 pub fn bake(m: &Manifest, opts: &BakeOptions) -> Result<BakeReport, BakeError> {
-    let dim = input_dim(&m.inputs[0]);
+    let dim = m.inputs[0].kind.dim();
     for spec in &m.inputs {
-        let found = input_dim(spec);
+        let found = spec.kind.dim();
         if found != dim {
             return Err(BakeError::MixedDimensions {
                 name: spec.name.clone(),

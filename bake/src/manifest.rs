@@ -24,7 +24,7 @@
 //! density = "inverted"          # luminance (default) | inverted | alpha
 //! ```
 
-use crate::input::DensityChannel;
+use crate::input::{DensityChannel, InputKind};
 use crate::proxy::ProxyShape;
 use crate::solve::{ExactSettings, SlicedSettings, SolverSettings};
 use serde::Deserialize;
@@ -115,6 +115,8 @@ pub struct ProxySpec {
 pub struct InputSpec {
     /// Unique name; also the archive's file stem.
     pub name: String,
+    /// File kind (from the extension).
+    pub kind: InputKind,
     /// Resolved input file.
     pub path: PathBuf,
     /// Which channel is the mass.
@@ -218,20 +220,15 @@ impl Manifest {
             }
             let rel = input.path.get_ref();
             let resolved = base.join(rel);
-            let ext = resolved
-                .extension()
-                .and_then(|e| e.to_str())
-                .map(|e| e.to_ascii_lowercase())
-                .unwrap_or_default();
-            if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            let Some(kind) = InputKind::from_path(&resolved) else {
                 return Err(at(
                     Some(input.path.span()),
                     format!(
                         "input {name:?}: unsupported file type {rel:?}; supported: {}",
-                        SUPPORTED_EXTENSIONS.map(|e| format!(".{e}")).join(", ")
+                        InputKind::supported()
                     ),
                 ));
-            }
+            };
             if !resolved.is_file() {
                 return Err(at(
                     Some(input.path.span()),
@@ -240,6 +237,7 @@ impl Manifest {
             }
             inputs.push(InputSpec {
                 name: name.clone(),
+                kind,
                 path: resolved,
                 density: input.density.unwrap_or_default(),
                 seed: input.seed.unwrap_or(0),
@@ -393,9 +391,6 @@ impl Manifest {
         })
     }
 }
-
-/// File extensions an `[[input]] path` may have.
-pub const SUPPORTED_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "exr"];
 
 /// 1-based line and column of byte `offset` in `text` (columns count characters).
 fn line_col(text: &str, offset: usize) -> (usize, usize) {

@@ -32,7 +32,62 @@ pub use self::image::{load_image, srgb_to_linear};
 pub use grid::Grid;
 
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// Kinds of input files. A new input format adds a variant, its extensions in [`EXTENSIONS`], and a
+/// loader module; the manifest and the baker dispatch through here and nowhere else.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputKind {
+    /// PNG, JPEG (sRGB) or EXR (linear) images: 2D.
+    Image,
+}
+
+/// File extensions (lower case) of every input kind.
+pub const EXTENSIONS: &[(&str, InputKind)] = &[
+    ("png", InputKind::Image),
+    ("jpg", InputKind::Image),
+    ("jpeg", InputKind::Image),
+    ("exr", InputKind::Image),
+];
+
+impl InputKind {
+    /// The kind of `path`, by extension (case-insensitive); `None` if unsupported.
+    pub fn from_path(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        EXTENSIONS.iter().find(|(e, _)| *e == ext).map(|(_, k)| *k)
+    }
+
+    /// Dimension of the domain of inputs of this kind.
+    pub fn dim(self) -> usize {
+        match self {
+            InputKind::Image => 2,
+        }
+    }
+
+    /// `.png, .jpg, …`: for error messages.
+    pub fn supported() -> String {
+        EXTENSIONS
+            .iter()
+            .map(|(e, _)| format!(".{e}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Loads any supported input file as a density grid.
+pub fn load(path: &Path, channel: DensityChannel) -> Result<Grid, InputError> {
+    match InputKind::from_path(path) {
+        Some(InputKind::Image) => load_image(path, channel),
+        None => Err(InputError::UnsupportedExtension {
+            path: path.to_path_buf(),
+            ext: path
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_string(),
+        }),
+    }
+}
 
 /// Which quantity of a pixel is the density (see the table in the module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Deserialize)]
