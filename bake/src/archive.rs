@@ -51,8 +51,6 @@ impl ProxyData {
 /// A baked map, aligned with its proxy's tree order.
 #[derive(Debug, Clone)]
 pub struct MapData {
-    /// Input name.
-    pub name: String,
     /// Content key.
     pub key: [u8; 32],
     /// Key of the proxy.
@@ -94,7 +92,6 @@ impl MapData {
             depth: d,
             proxy_key: self.proxy_key,
             key: self.key,
-            name: &self.name,
             composite: self.composite as u32,
             mean_mass: self.mean_mass,
             positions: &self.positions,

@@ -1,12 +1,18 @@
-//! The bake: manifest → proxy archive + one map archive per input, skipping products whose key
-//! matches what is already on disk.
+//! The bake: manifest → proxy archive + one map archive per input, doing only what changed.
+//!
+//! Every product has a key (see [`proxy_key`], [`map_key`]): a blake3 hash of everything that
+//! determines its bytes. A product is current when its output file holds an archive with that key; it
+//! is restored from the [`Store`] when the store has the key; otherwise it is built. Failures are per
+//! product: one bad input fails its map and nothing else.
 //!
 //! Architecture invariant: a product's bytes depend only on its key's inputs (declared files and
-//! normalized settings) — never on the clock, paths, thread count or what else the manifest holds. So
-//! renaming or adding an input never rebakes another one.
+//! normalized settings) — never on the clock, paths, names, thread count or the other inputs of the
+//! manifest. So renaming or adding an input never rebakes another one, and any bake of a key, by
+//! `bake`, by `bake_one` in a build system, on any machine, gives the same bytes.
 
-use crate::archive::{self, MapData, ProxyData};
+use crate::archive::{MapData, ProxyData};
 use crate::error::BakeError;
+use crate::filestat::StatIndex;
 use crate::fsio;
 use crate::input::{self, DensityChannel, Grid};
 use crate::key::KeyBuilder;
@@ -14,17 +20,32 @@ use crate::manifest::{InputSpec, Manifest, ProxySource};
 use crate::proxy;
 use crate::sample;
 use crate::solve::{self, Problem};
-use otbake_formats::Composite;
-use std::path::PathBuf;
+use crate::store::{self, Store};
+use otbake_formats::{ArchiveKind, Composite};
+use rkyv::util::AlignedVec;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// How a product came to be.
+/// What happened to a product.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
     /// Baked now.
     Built,
-    /// A valid archive with the same key was already there.
+    /// Already current, or restored from the store without baking.
     Cached,
+    /// Could not be baked; `detail` says why.
+    Failed,
+}
+
+impl Status {
+    /// Lower-case name (`built`, `cached`, `failed`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Built => "built",
+            Status::Cached => "cached",
+            Status::Failed => "failed",
+        }
+    }
 }
 
 /// One product of a bake.
@@ -32,21 +53,69 @@ pub enum Status {
 pub struct Product {
     /// "proxy" or the input name.
     pub name: String,
-    /// Archive path.
+    /// Output archive path.
     pub path: PathBuf,
-    /// Built or cached.
+    /// Built, cached or failed.
     pub status: Status,
     /// Wall time spent on it.
     pub seconds: f64,
-    /// Solver report (maps) or settings (proxy).
+    /// Solver report (built maps), where a cached product came from, or the error.
     pub detail: String,
 }
 
-/// What a bake did.
+/// What a bake did, proxy first, then inputs in manifest order.
 #[derive(Debug, Clone, Default)]
 pub struct BakeReport {
-    /// Proxy first, then inputs in manifest order.
+    /// Every product of the manifest.
     pub products: Vec<Product>,
+}
+
+impl BakeReport {
+    /// Whether any product failed.
+    pub fn failed(&self) -> bool {
+        self.products.iter().any(|p| p.status == Status::Failed)
+    }
+
+    /// The report as JSON: `{"products": [{"name", "path", "status", "seconds", "detail"}]}`.
+    pub fn to_json(&self) -> String {
+        let products: Vec<_> = self
+            .products
+            .iter()
+            .map(|p| {
+                serde_json::json!({
+                    "name": p.name,
+                    "path": p.path.display().to_string(),
+                    "status": p.status.name(),
+                    "seconds": p.seconds,
+                    "detail": p.detail,
+                })
+            })
+            .collect();
+        serde_json::json!({ "products": products }).to_string()
+    }
+}
+
+/// Progress notifications, for a terminal UI.
+#[derive(Debug)]
+pub enum Event<'a> {
+    /// Work on a product began (only for products that are baked).
+    Started {
+        /// Product name.
+        name: &'a str,
+    },
+    /// A product is done.
+    Finished(&'a Product),
+}
+
+/// Options of a bake.
+#[derive(Clone, Copy, Default)]
+pub struct BakeOptions<'a> {
+    /// Rebuild every product even when it is current (the store is bypassed too).
+    pub force: bool,
+    /// Store directory; default: `OUTPUT_DIR/.otbake`.
+    pub store: Option<&'a Path>,
+    /// Called on progress events (from the calling thread).
+    pub on_event: Option<&'a dyn Fn(&Event<'_>)>,
 }
 
 /// Decodes an input into its density grid.
@@ -58,16 +127,20 @@ pub fn load_input(spec: &InputSpec) -> Result<Grid, BakeError> {
 }
 
 /// Bytes that identify an input: its file contents and how it is read.
-fn input_identity(key: &mut KeyBuilder, spec: &InputSpec) -> Result<(), BakeError> {
-    let bytes = fsio::read(&spec.path)?;
-    key.field("input-file", blake3::hash(&bytes).as_bytes())
+fn input_identity(
+    key: &mut KeyBuilder,
+    spec: &InputSpec,
+    index: &mut StatIndex,
+) -> Result<(), BakeError> {
+    let digest = index.digest(&spec.path)?;
+    key.field("input-file", &digest)
         .debug("density", &spec.density)
         .field("input-seed", &spec.seed.to_le_bytes());
     Ok(())
 }
 
 /// The proxy's key: its settings, the dimension, and (for an input proxy) that input's identity.
-pub fn proxy_key(m: &Manifest, dim: usize) -> Result<[u8; 32], BakeError> {
+pub fn proxy_key(m: &Manifest, dim: usize, index: &mut StatIndex) -> Result<[u8; 32], BakeError> {
     let mut k = KeyBuilder::new("proxy");
     k.field("dim", &(dim as u64).to_le_bytes())
         .field("samples", &(m.proxy.samples as u64).to_le_bytes())
@@ -79,21 +152,22 @@ pub fn proxy_key(m: &Manifest, dim: usize) -> Result<[u8; 32], BakeError> {
         }
         ProxySource::Input(i) => {
             k.field("shape", b"input");
-            input_identity(&mut k, &m.inputs[*i])?;
+            input_identity(&mut k, &m.inputs[*i], index)?;
         }
     }
     Ok(k.finish())
 }
 
-/// A map's key: the proxy key, the input's identity, and the solver settings.
+/// A map's key: the proxy key, the input's identity, and the solver settings (not the input's name).
 pub fn map_key(
     m: &Manifest,
     proxy_key: &[u8; 32],
     spec: &InputSpec,
+    index: &mut StatIndex,
 ) -> Result<[u8; 32], BakeError> {
     let mut k = KeyBuilder::new("map");
     k.field("proxy", proxy_key);
-    input_identity(&mut k, spec)?;
+    input_identity(&mut k, spec, index)?;
     k.field("solver", m.solver.fingerprint().as_bytes());
     Ok(k.finish())
 }
@@ -106,110 +180,290 @@ fn composite_of(channel: DensityChannel) -> Composite {
     }
 }
 
-/// Options of a bake.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct BakeOptions {
-    /// Rebuild every product even when its archive is current.
-    pub force: bool,
-}
-
-/// Bakes everything a manifest declares that is not already current on disk.
-pub fn bake(m: &Manifest, opts: &BakeOptions) -> Result<BakeReport, BakeError> {
+/// The dimension shared by all inputs.
+fn manifest_dim(m: &Manifest) -> Result<usize, BakeError> {
     let dim = m.inputs[0].kind.dim();
     for spec in &m.inputs {
-        let found = spec.kind.dim();
-        if found != dim {
+        if spec.kind.dim() != dim {
             return Err(BakeError::MixedDimensions {
                 name: spec.name.clone(),
                 expected: dim,
-                found,
+                found: spec.kind.dim(),
             });
         }
     }
-    let mut report = BakeReport::default();
-    let pkey = proxy_key(m, dim)?;
-    let proxy_path = m.proxy_archive();
+    Ok(dim)
+}
 
-    // Decide what is stale, then decode every stale input before writing anything: a bad input fails
-    // the bake before any work is done or any file is touched.
-    let mut stale = Vec::new();
-    for (index, spec) in m.inputs.iter().enumerate() {
-        let key = map_key(m, &pkey, spec)?;
-        let path = m.map_archive(&spec.name);
-        if !opts.force && archive::map_key_on_disk(&path) == Some(key) {
-            continue;
-        }
-        stale.push((index, key, load_input(spec)?));
+/// Where a product's current archive can be had without baking.
+enum Current {
+    /// The output file already holds it.
+    OnDisk,
+    /// The store holds it.
+    Stored(AlignedVec<16>),
+}
+
+/// Whether `path` holds (or the store has) the archive of `key`.
+fn current(
+    path: &Path,
+    key: &[u8; 32],
+    kind: ArchiveKind,
+    index: &mut StatIndex,
+    store: Option<&Store>,
+) -> Option<Current> {
+    if index.lookup(path) == Some(*key) {
+        return Some(Current::OnDisk);
     }
+    if let Ok(bytes) = fsio::read_aligned(path) {
+        if store::archive_key(&bytes, kind) == Some(*key) {
+            index.record(path, *key);
+            return Some(Current::OnDisk);
+        }
+    }
+    store?.get(key, kind).map(Current::Stored)
+}
 
-    // The proxy is needed in memory only if some map must be built.
-    let t = Instant::now();
-    let proxy_cached = !opts.force && archive::proxy_key_on_disk(&proxy_path) == Some(pkey);
-    let proxy = if !proxy_cached {
-        let data = build_proxy(m, dim, pkey)?;
-        write(&proxy_path, data.encode())?;
-        Some(data)
-    } else if stale.is_empty() {
-        None
-    } else {
-        // Current on disk: read its points back rather than resampling.
-        match archive::load_proxy_positions(&proxy_path, &pkey) {
-            Some(p) => Some(p),
-            None => Some(build_proxy(m, dim, pkey)?),
+/// Writes a product's bytes to its output (and the store), atomically.
+fn publish(
+    path: &Path,
+    key: &[u8; 32],
+    bytes: &[u8],
+    store: Option<&Store>,
+    index: &mut StatIndex,
+) -> Result<(), BakeError> {
+    if let Some(store) = store {
+        store.put(key, bytes)?;
+    }
+    fsio::write_atomic(path, bytes)?;
+    index.record(path, *key);
+    Ok(())
+}
+
+fn encoded(
+    path: &Path,
+    bytes: Result<AlignedVec<16>, otbake_formats::write::WriteError>,
+) -> Result<AlignedVec<16>, BakeError> {
+    bytes.map_err(|source| BakeError::Encode {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Bakes everything a manifest declares that is not already current on disk or in the store.
+///
+/// Returns `Err` only when nothing can be baked (mixed dimensions, the proxy fails, the store cannot
+/// be written); per-input failures are [`Status::Failed`] products of an `Ok` report.
+pub fn bake(m: &Manifest, opts: &BakeOptions<'_>) -> Result<BakeReport, BakeError> {
+    let dim = manifest_dim(m)?;
+    let store = Store::at(
+        opts.store
+            .map_or_else(|| m.output_dir.join(store::DEFAULT_DIR), Path::to_path_buf),
+    );
+    let mut index = StatIndex::load(&store.root().join("stat-index"));
+    let use_store = (!opts.force).then_some(&store);
+    let emit = |e: Event<'_>| {
+        if let Some(f) = opts.on_event {
+            f(&e)
         }
     };
-    report.products.push(Product {
+    let mut report = BakeReport::default();
+    let pkey = proxy_key(m, dim, &mut index)?;
+    let proxy_path = m.proxy_archive();
+
+    // Classify every map: current (on disk or in the store), failed before any work, or stale.
+    let mut maps: Vec<Option<Product>> = Vec::new();
+    let mut stale: Vec<(usize, [u8; 32], Grid)> = Vec::new();
+    for (i, spec) in m.inputs.iter().enumerate() {
+        let t = Instant::now();
+        let path = m.map_archive(&spec.name);
+        let done = |status, detail: String| Product {
+            name: spec.name.clone(),
+            path: path.clone(),
+            status,
+            seconds: t.elapsed().as_secs_f64(),
+            detail,
+        };
+        let key = match map_key(m, &pkey, spec, &mut index) {
+            Ok(k) => k,
+            Err(e) => {
+                maps.push(Some(done(Status::Failed, e.to_string())));
+                continue;
+            }
+        };
+        let cur = if opts.force {
+            None
+        } else {
+            current(&path, &key, ArchiveKind::Map, &mut index, use_store)
+        };
+        match cur {
+            Some(Current::OnDisk) => maps.push(Some(done(Status::Cached, "current".into()))),
+            Some(Current::Stored(bytes)) => {
+                fsio::write_atomic(&path, &bytes)?;
+                index.record(&path, key);
+                maps.push(Some(done(Status::Cached, "restored from the store".into())));
+            }
+            // Decode stale inputs before anything is written: a bad input fails only its product.
+            None => match load_input(spec) {
+                Ok(grid) => {
+                    stale.push((i, key, grid));
+                    maps.push(None);
+                }
+                Err(e) => maps.push(Some(done(Status::Failed, e.to_string()))),
+            },
+        }
+    }
+
+    // The proxy: current, restored, or built; held in memory only if a map must be built.
+    let t = Instant::now();
+    let mut proxy_data: Option<ProxyData> = None;
+    let cur = if opts.force {
+        None
+    } else {
+        current(
+            &proxy_path,
+            &pkey,
+            ArchiveKind::Proxy,
+            &mut index,
+            use_store,
+        )
+    };
+    let (status, detail) = match cur {
+        Some(Current::OnDisk) => (Status::Cached, "current".to_string()),
+        Some(Current::Stored(bytes)) => {
+            fsio::write_atomic(&proxy_path, &bytes)?;
+            index.record(&proxy_path, pkey);
+            (Status::Cached, "restored from the store".to_string())
+        }
+        None if stale.is_empty()
+            && m.inputs.len()
+                == maps
+                    .iter()
+                    .flatten()
+                    .filter(|p| p.status == Status::Failed)
+                    .count() =>
+        {
+            // Every map failed before any work: writing a proxy nobody can use is not progress.
+            (Status::Failed, "not built: every input failed".to_string())
+        }
+        None => {
+            emit(Event::Started { name: "proxy" });
+            let data = build_proxy(m, dim, pkey)?;
+            let bytes = encoded(&proxy_path, data.encode())?;
+            publish(&proxy_path, &pkey, &bytes, Some(&store), &mut index)?;
+            proxy_data = Some(data);
+            (Status::Built, describe_proxy(m))
+        }
+    };
+    let proxy_product = Product {
         name: "proxy".into(),
         path: proxy_path.clone(),
-        status: if proxy_cached {
-            Status::Cached
-        } else {
-            Status::Built
-        },
+        status,
         seconds: t.elapsed().as_secs_f64(),
-        detail: describe_proxy(m),
-    });
-
-    let mut stale = stale.into_iter().peekable();
-    for (index, spec) in m.inputs.iter().enumerate() {
-        let path = m.map_archive(&spec.name);
-        let t = Instant::now();
-        let Some((_, key, grid)) = stale.next_if(|(i, _, _)| *i == index) else {
-            report.products.push(Product {
-                name: spec.name.clone(),
-                path,
-                status: Status::Cached,
-                seconds: 0.0,
-                detail: String::new(),
-            });
-            continue;
-        };
-        let p = proxy
-            .as_ref()
-            .expect("a proxy is loaded whenever a map is stale");
-        let data = build_map(m, index, &grid, p, key)?;
-        write(&path, data.encode())?;
-        report.products.push(Product {
-            name: spec.name.clone(),
-            path,
-            status: Status::Built,
-            seconds: t.elapsed().as_secs_f64(),
-            detail: data.solver_report.clone(),
-        });
+        detail,
+    };
+    emit(Event::Finished(&proxy_product));
+    report.products.push(proxy_product);
+    if !stale.is_empty() && proxy_data.is_none() {
+        proxy_data = Some(
+            crate::archive::load_proxy_positions(&proxy_path, &pkey)
+                .map_or_else(|| build_proxy(m, dim, pkey), Ok)?,
+        );
     }
+
+    let mut stale = stale.into_iter();
+    for (i, done) in maps.into_iter().enumerate() {
+        let product = match done {
+            Some(p) => p,
+            None => {
+                let (_, key, grid) = stale.next().expect("one stale entry per undecided map");
+                let spec = &m.inputs[i];
+                emit(Event::Started { name: &spec.name });
+                let t = Instant::now();
+                let path = m.map_archive(&spec.name);
+                let proxy = proxy_data
+                    .as_ref()
+                    .expect("the proxy is loaded whenever a map is stale");
+                let built = build_map(m, i, &grid, proxy, key).and_then(|data| {
+                    let bytes = encoded(&path, data.encode())?;
+                    publish(&path, &key, &bytes, Some(&store), &mut index)?;
+                    Ok(data.solver_report)
+                });
+                let (status, detail) = match built {
+                    Ok(report) => (Status::Built, report),
+                    Err(e) => (Status::Failed, e.to_string()),
+                };
+                Product {
+                    name: spec.name.clone(),
+                    path,
+                    status,
+                    seconds: t.elapsed().as_secs_f64(),
+                    detail,
+                }
+            }
+        };
+        emit(Event::Finished(&product));
+        report.products.push(product);
+    }
+    index.save()?;
     Ok(report)
 }
 
-fn write(
-    path: &std::path::Path,
-    bytes: Result<rkyv::util::AlignedVec<16>, otbake_formats::write::WriteError>,
-) -> Result<(), BakeError> {
-    let bytes = bytes.map_err(|source| BakeError::Encode {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    fsio::write_atomic(path, &bytes)?;
-    Ok(())
+/// Which product a hermetic [`bake_one`] action makes.
+#[derive(Debug, Clone)]
+pub enum Action<'a> {
+    /// The proxy archive.
+    Proxy,
+    /// The map of input `name`, against the proxy archive at `proxy`.
+    Map {
+        /// Input name in the manifest.
+        name: &'a str,
+        /// The proxy archive (built by the `Proxy` action).
+        proxy: &'a Path,
+    },
+}
+
+/// A hermetic single-product bake, for build systems: reads only the manifest, the product's input
+/// file(s) and (for a map) the given proxy archive; writes only `output`, atomically, and leaves it
+/// untouched when it already holds the product (so Ninja's `restat` can skip dependents). Uses no
+/// store, no index, no clock in its output, no home directory and no network.
+///
+/// Returns whether `output` was (re)written.
+pub fn bake_one(m: &Manifest, action: &Action<'_>, output: &Path) -> Result<bool, BakeError> {
+    let dim = manifest_dim(m)?;
+    let mut none = StatIndex::none();
+    let pkey = proxy_key(m, dim, &mut none)?;
+    let (key, kind) = match action {
+        Action::Proxy => (pkey, ArchiveKind::Proxy),
+        Action::Map { name, .. } => {
+            let i = m.input_index(name).ok_or_else(|| BakeError::UnknownInput {
+                name: name.to_string(),
+                manifest: m.path.clone(),
+            })?;
+            (
+                map_key(m, &pkey, &m.inputs[i], &mut none)?,
+                ArchiveKind::Map,
+            )
+        }
+    };
+    if current(output, &key, kind, &mut none, None).is_some() {
+        return Ok(false);
+    }
+    let bytes = match action {
+        Action::Proxy => encoded(output, build_proxy(m, dim, pkey)?.encode())?,
+        Action::Map { name, proxy } => {
+            let i = m.input_index(name).expect("checked above");
+            let proxy_data =
+                crate::archive::load_proxy_positions(proxy, &pkey).ok_or_else(|| {
+                    BakeError::StaleProxy {
+                        path: proxy.to_path_buf(),
+                    }
+                })?;
+            let grid = load_input(&m.inputs[i])?;
+            encoded(output, build_map(m, i, &grid, &proxy_data, key)?.encode())?
+        }
+    };
+    fsio::write_atomic(output, &bytes)?;
+    Ok(true)
 }
 
 fn describe_proxy(m: &Manifest) -> String {
@@ -295,7 +549,6 @@ fn build_map(
             .collect()
     };
     Ok(MapData {
-        name: spec.name.clone(),
         key,
         proxy_key: proxy.key,
         dim,

@@ -50,6 +50,20 @@ pub enum BakeError {
         /// Its dimension.
         found: usize,
     },
+    /// `bake-one` named an input the manifest does not have.
+    #[error("{} has no input named {name:?}: use one of its [[input]] names", manifest.display())]
+    UnknownInput {
+        /// The name given.
+        name: String,
+        /// The manifest.
+        manifest: PathBuf,
+    },
+    /// `bake-one` was given a proxy archive that is missing, damaged or of other settings.
+    #[error("proxy archive {} is missing, damaged or was baked from other proxy settings: bake the proxy action first", path.display())]
+    StaleProxy {
+        /// The proxy archive.
+        path: PathBuf,
+    },
     /// Reading or writing a file failed.
     #[error(transparent)]
     Io(#[from] IoError),

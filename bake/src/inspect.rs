@@ -46,8 +46,8 @@ pub fn describe(bytes: &[u8]) -> String {
         ArchiveKind::Map => match otbake_formats::open::open_map(&aligned) {
             Ok(m) => {
                 s += &format!(
-                    "map            name={:?} dim={} n={} depth={} composite={} mean_mass={}\n",
-                    &*m.name, m.dim, m.n, m.depth, m.composite, m.mean_mass
+                    "map            dim={} n={} depth={} composite={} mean_mass={}\n",
+                    m.dim, m.n, m.depth, m.composite, m.mean_mass
                 );
                 s += &format!("key            {}\n", hex(&m.key));
                 s += &format!("proxy key      {}\n", hex(&m.proxy_key));

@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use otbake::bake::{bake, BakeOptions, Status};
+use otbake::bake::{bake, bake_one, Action, BakeOptions, Status};
 use otbake::imageio::write_image;
 use otbake::manifest::Manifest;
 use otbake::render::{render, render_grid, Archives, Method, RenderSettings};
@@ -53,9 +53,57 @@ enum Command {
         /// Manifest files.
         #[arg(required = true)]
         manifests: Vec<PathBuf>,
-        /// Rebuild even when archives are current.
+        /// Rebuild even when archives are current (bypasses the store).
         #[arg(long)]
         force: bool,
+        /// Print the report as JSON on stdout (one object per manifest, one per line).
+        #[arg(long)]
+        json: bool,
+        /// Store directory shared between bakes (default: OUTPUT_DIR/.otbake).
+        #[arg(long, env = "OTBAKE_CACHE_DIR")]
+        cache_dir: Option<PathBuf>,
+    },
+    /// Hermetic single-product bake for build systems: reads only the manifest, the product's inputs
+    /// and the proxy archive; writes only OUTPUT (untouched if already current).
+    BakeOne {
+        /// Manifest file.
+        manifest: PathBuf,
+        /// `proxy`, or the name of an input.
+        #[arg(long)]
+        product: String,
+        /// The proxy archive (required for maps).
+        #[arg(long)]
+        proxy: Option<PathBuf>,
+        /// Output archive.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Print the whole bake as a build graph of `bake-one` actions (Ninja file or JSON).
+    Plan {
+        /// Manifest file.
+        manifest: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = otbake::plan::Format::Ninja)]
+        format: otbake::plan::Format,
+    },
+    /// Compress an archive with zstd for storage or transfer (the runtime reads uncompressed bytes).
+    Pack {
+        /// Archive (.otb).
+        archive: PathBuf,
+        /// Output (default: ARCHIVE.zst).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// zstd level (1-22).
+        #[arg(long, default_value_t = 19)]
+        level: i32,
+    },
+    /// Decompress a packed archive and validate it.
+    Unpack {
+        /// Packed archive (.otb.zst).
+        packed: PathBuf,
+        /// Output archive.
+        #[arg(short, long)]
+        output: PathBuf,
     },
     /// Render one blend of a manifest's inputs as an image (bakes what is missing first).
     Blend {
@@ -138,33 +186,114 @@ fn main() {
     }
 }
 
-fn load_and_bake(path: &Path, force: bool, quiet: bool) -> Result<Manifest> {
+/// How a bake shows itself.
+#[derive(Clone, Copy, Default)]
+struct Show {
+    /// One line per product on stderr (and spinners on a terminal).
+    lines: bool,
+    /// The JSON report on stdout.
+    json: bool,
+}
+
+fn load_and_bake(
+    path: &Path,
+    force: bool,
+    cache_dir: Option<&Path>,
+    show: Show,
+) -> Result<Manifest> {
     let m = Manifest::load(path)?;
-    let report = bake(&m, &BakeOptions { force })?;
-    if !quiet {
-        for p in &report.products {
-            let status = match p.status {
-                Status::Built => "built ",
-                Status::Cached => "cached",
-            };
-            eprintln!(
-                "{status} {:<12} {:>8.2} s  {}  {}",
-                p.name,
-                p.seconds,
-                p.path.display(),
-                p.detail
-            );
-        }
+    let progress = otbake::progress::Progress::new(show.lines);
+    let on_event = |e: &otbake::bake::Event<'_>| progress.event(e);
+    let report = bake(
+        &m,
+        &BakeOptions {
+            force,
+            store: cache_dir,
+            on_event: Some(&on_event),
+        },
+    )?;
+    progress.finish();
+    if show.json {
+        println!("{}", report.to_json());
+    }
+    let failed: Vec<_> = report
+        .products
+        .iter()
+        .filter(|p| p.status == Status::Failed)
+        .collect();
+    // Name an input's failure first: a proxy skipped because every input failed is a consequence.
+    if let Some(first) = failed.iter().find(|p| p.name != "proxy").or(failed.first()) {
+        bail!(
+            "{} of {} products failed; first: {}: {}",
+            failed.len(),
+            report.products.len(),
+            first.name,
+            first.detail
+        );
     }
     Ok(m)
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Bake { manifests, force } => {
+        Command::Bake {
+            manifests,
+            force,
+            json,
+            cache_dir,
+        } => {
             for m in &manifests {
-                load_and_bake(m, force, false)?;
+                load_and_bake(m, force, cache_dir.as_deref(), Show { lines: !json, json })?;
             }
+        }
+        Command::BakeOne {
+            manifest,
+            product,
+            proxy,
+            output,
+        } => {
+            let m = Manifest::load(&manifest)?;
+            let action = if product == "proxy" {
+                Action::Proxy
+            } else {
+                let Some(proxy) = proxy.as_deref() else {
+                    bail!(
+                        "--product {product:?} is a map: give the proxy archive with --proxy PATH"
+                    );
+                };
+                Action::Map {
+                    name: &product,
+                    proxy,
+                }
+            };
+            bake_one(&m, &action, &output)?;
+        }
+        Command::Plan { manifest, format } => {
+            let m = Manifest::load(&manifest)?;
+            let exe = std::env::current_exe().context("cannot locate the otbake executable")?;
+            print!("{}", otbake::plan::render(&m, &exe, format)?);
+        }
+        Command::Pack {
+            archive,
+            output,
+            level,
+        } => {
+            let bytes = std::fs::read(&archive)
+                .with_context(|| format!("cannot read {}", archive.display()))?;
+            otbake::inspect::validate(&bytes)
+                .with_context(|| format!("{} is not a valid archive", archive.display()))?;
+            let packed = zstd::bulk::compress(&bytes, level).context("zstd compression failed")?;
+            let out = output.unwrap_or_else(|| PathBuf::from(format!("{}.zst", archive.display())));
+            otbake::fsio::write_atomic(&out, &packed)?;
+        }
+        Command::Unpack { packed, output } => {
+            let bytes = std::fs::read(&packed)
+                .with_context(|| format!("cannot read {}", packed.display()))?;
+            let raw = zstd::stream::decode_all(&bytes[..])
+                .with_context(|| format!("{} is not zstd data", packed.display()))?;
+            otbake::inspect::validate(&raw)
+                .with_context(|| format!("{} does not hold a valid archive", packed.display()))?;
+            otbake::fsio::write_atomic(&output, &raw)?;
         }
         Command::Blend {
             manifest,
@@ -173,7 +302,7 @@ fn run(cli: Cli) -> Result<()> {
             output,
         } => {
             let settings = image.settings()?;
-            let m = load_and_bake(&manifest, false, true)?;
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             if weights.len() != maps.len() {
@@ -199,7 +328,7 @@ fn run(cli: Cli) -> Result<()> {
             output,
         } => {
             let settings = image.settings()?;
-            let m = load_and_bake(&manifest, false, true)?;
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let img = render_grid(&archives, steps, &settings)?;
             write_image(&output, &img)?;
@@ -209,7 +338,7 @@ fn run(cli: Cli) -> Result<()> {
             input,
             output,
         } => {
-            let m = load_and_bake(&manifest, false, true)?;
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
             if m.input_index(&input).is_none() {
                 bail!(
                     "--input {input:?} is not an input of {}: use one of {}",

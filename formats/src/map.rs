@@ -5,6 +5,9 @@ use rkyv::{Archive, Serialize};
 
 /// The transport map of one input: `positions[i]` is where proxy point `i` (tree order) goes.
 ///
+/// A map holds no name or path: its bytes depend only on the input's content and settings, the proxy
+/// and the solver, so renaming an input in a manifest never changes (or rebakes) its map.
+///
 /// Because the layout follows the proxy's tree, the blend of k maps for weights `w` is the point cloud
 /// `Σ w_k positions_k[i]`, and the box of node `j` in that blend is contained in `Σ w_k box_k[j]`
 /// (particles move on straight lines), which is what lets the runtime prune for any weights.
@@ -20,9 +23,6 @@ pub struct Map<'a> {
     pub proxy_key: [u8; 32],
     /// Key of everything that determined this map (input bytes, settings, proxy key, solver).
     pub key: [u8; 32],
-    /// Input name from the manifest.
-    #[rkyv(with = InlineAsBox)]
-    pub name: &'a str,
     /// [`crate::Composite`] code: how color is displayed.
     pub composite: u32,
     /// Mean of the input's mass channel over its domain (the normalization the density divides out).

@@ -37,7 +37,6 @@ fn sample_archives() -> (Vec<u8>, Vec<u8>) {
         depth: d,
         proxy_key: [7; 32],
         key: [9; 32],
-        name: "m",
         composite: 0,
         mean_mass: 0.5,
         positions: &pos,
@@ -62,7 +61,7 @@ fn round_trip() {
     assert_eq!(proxy.n, 37);
     assert_eq!(proxy.positions.len(), 74);
     let map = open_map(&m).unwrap();
-    assert_eq!(&*map.name, "m");
+    assert_eq!(map.n, 37);
     assert_eq!(
         map.node_colors[0].to_native(),
         (0..37).map(|i| 3 * i).sum::<i32>() as f32

@@ -80,11 +80,6 @@ impl<'a> Map<'a> {
         })
     }
 
-    /// Input name.
-    pub fn name(&self) -> &'a str {
-        &self.archived.name
-    }
-
     /// How the input's color is displayed.
     pub fn composite(&self) -> Composite {
         self.composite

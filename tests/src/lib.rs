@@ -81,7 +81,7 @@ pub fn otbake_err(dir: &Path, args: &[&str]) -> String {
         "otbake {args:?} should fail but succeeded:\n{err}"
     );
     assert!(
-        err.starts_with("error: "),
+        err.lines().any(|l| l.starts_with("error: ")),
         "errors are one clear line, not a panic:\n{err}"
     );
     assert!(!err.contains("panicked"), "otbake panicked:\n{err}");

@@ -83,7 +83,6 @@ pub fn fixture(seed: u64, n: usize, dim: usize, leaf: u32, k: usize, key: [u8; 3
                 depth: d,
                 proxy_key: key,
                 key: [m as u8; 32],
-                name: "m",
                 composite: 0,
                 mean_mass: mean,
                 positions: &pos,
