@@ -282,3 +282,164 @@ fn damaged_archives_never_panic() {
         Err(Error::Format(otbake_formats::FormatError::Misaligned))
     ));
 }
+
+/// Runs every query with a spread of arguments; results are ignored, panics are what is tested.
+fn exercise(blend: &Blend<'_, '_>) {
+    let d = blend.dim();
+    let k = blend.k();
+    let w: Vec<f32> = vec![1.0 / k as f32; k];
+    for sigma in [1e-6f32, 0.05, 10.0, f32::MAX] {
+        for p in [0.5f32, -1e30, 1e30] {
+            let _ = blend.point(&w, &vec![p; d], Kernel { sigma });
+        }
+        let mut density = vec![0.0f32; 5usize.pow(d as u32)];
+        let mut color = vec![0.0f32; density.len() * 3];
+        let mut res = [1u32; 4];
+        res[..d].fill(5);
+        let _ = blend.splat(
+            &w,
+            Kernel { sigma },
+            SplatTarget {
+                res,
+                density: &mut density,
+                color: Some(&mut color),
+            },
+        );
+    }
+    let _ = blend.range(&w, &vec![0.2; d], &vec![0.8; d]);
+    let _ = blend.range(&w, &vec![f32::NEG_INFINITY; d], &vec![f32::INFINITY; d]);
+    let _ = blend.sample(&w, 0);
+    let _ = blend.sample(&w, blend.n().saturating_sub(1));
+}
+
+/// Flips payload bits and then *repairs the checksum*, so the damage reaches rkyv validation and the
+/// consistency checks (a forgery, not corruption). Whatever still opens must answer every query
+/// without panicking.
+#[test]
+fn forged_archives_never_panic() {
+    use otbake_formats::header::{Header, HEADER_LEN};
+    use otbake_formats::ArchiveKind;
+    let f = fixture(21, 40, 2, 3, 2, [1; 32]);
+    let (mut opened, mut tried) = (0, 0);
+    for (kind, bytes) in [
+        (ArchiveKind::Proxy, &f.proxy),
+        (ArchiveKind::Map, &f.maps[0]),
+    ] {
+        for i in HEADER_LEN..bytes.len() {
+            for bit in [0, 3, 6, 7] {
+                let mut b = bytes.to_vec();
+                b[i] ^= 1 << bit;
+                let header = Header::new(kind, &b[HEADER_LEN..]).encode();
+                b[..HEADER_LEN].copy_from_slice(&header);
+                let b = otbake_formats::write::aligned_copy(&b);
+                tried += 1;
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let good = Map::open(&f.maps[1]).unwrap();
+                    match kind {
+                        ArchiveKind::Proxy => {
+                            if let Ok(p) = Proxy::open(&b) {
+                                opened += 1;
+                                let maps = [good, Map::open(&f.maps[0]).unwrap()];
+                                if let Ok(blend) = Blend::new(p, &maps) {
+                                    exercise(&blend);
+                                }
+                            }
+                        }
+                        ArchiveKind::Map => {
+                            if let Ok(m) = Map::open(&b) {
+                                opened += 1;
+                                let maps = [m, good];
+                                if let Ok(blend) = Blend::new(Proxy::open(&f.proxy).unwrap(), &maps)
+                                {
+                                    exercise(&blend);
+                                }
+                            }
+                        }
+                    }
+                }));
+                assert!(result.is_ok(), "{kind:?} byte {i} bit {bit} panicked");
+            }
+        }
+    }
+    // Most forgeries change a float and still validate: the queries really ran.
+    assert!(
+        opened > tried / 4,
+        "{opened} of {tried} forged archives opened"
+    );
+}
+
+/// Valid archives holding extreme finite values answer every query without panicking.
+#[test]
+fn extreme_values_never_panic() {
+    use otbake_formats::{map::Map as MapData, proxy::Proxy as ProxyData, tree, write};
+    let n = 30;
+    let ext = [
+        f32::MAX,
+        -f32::MAX,
+        f32::MIN_POSITIVE,
+        1e-45,
+        0.0,
+        -0.0,
+        1e30,
+        0.5,
+    ];
+    let pos: Vec<f32> = (0..n * 2).map(|i| ext[i % ext.len()]).collect();
+    let colors: Vec<f32> = (0..n * 3).map(|i| ext[(i * 7) % ext.len()] / 4.0).collect();
+    let d = tree::depth(n as u32, 2);
+    let nodes = tree::node_count(d) as usize;
+    let mut boxes = vec![0.0; nodes * 4];
+    tree::fill_node_boxes(&pos, 2, d, &mut boxes);
+    let mut sums = vec![0.0; nodes * 3];
+    tree::fill_node_sums(&colors, 3, d, &mut sums);
+    let sums: Vec<f32> = sums
+        .iter()
+        .map(|v| if v.is_finite() { *v } else { f32::MAX })
+        .collect();
+    let pb = write::encode_proxy(&ProxyData {
+        dim: 2,
+        n: n as u32,
+        leaf_size: 2,
+        depth: d,
+        key: [3; 32],
+        description: "",
+        positions: &pos,
+        node_boxes: &boxes,
+    })
+    .unwrap();
+    let mb = write::encode_map(&MapData {
+        dim: 2,
+        n: n as u32,
+        depth: d,
+        proxy_key: [3; 32],
+        key: [4; 32],
+        composite: 0,
+        mean_mass: f32::MAX,
+        positions: &pos,
+        colors: &colors,
+        node_boxes: &boxes,
+        node_colors: &sums,
+        solver_report: "",
+        transport_cost: 0.0,
+    })
+    .unwrap();
+    let maps = [Map::open(&mb).unwrap(), Map::open(&mb).unwrap()];
+    let blend = Blend::new(Proxy::open(&pb).unwrap(), &maps).unwrap();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        exercise(&blend);
+        // Weights summing slightly above 1 push f32::MAX coordinates to infinity.
+        let w = [0.50004, 0.50004];
+        let _ = blend.point(&w, &[f32::MAX, -f32::MAX], Kernel { sigma: 1.0 });
+        let _ = blend.range(&w, &[-f32::MAX, 0.0], &[f32::MAX, 0.0]);
+        let mut density = vec![0.0f32; 16];
+        let _ = blend.splat(
+            &w,
+            Kernel { sigma: 0.1 },
+            SplatTarget {
+                res: [4, 4, 0, 0],
+                density: &mut density,
+                color: None,
+            },
+        );
+    }));
+    assert!(result.is_ok());
+}
