@@ -277,3 +277,36 @@ pub fn render_grid(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::grid_cells;
+
+    #[test]
+    fn grid_layouts_cover_the_simplex_with_valid_weights() {
+        for (k, steps, cells, size) in [(2, 5, 5, (5, 1)), (3, 4, 10, (7, 4)), (4, 5, 25, (5, 5))] {
+            let (c, s) = grid_cells(k, steps).unwrap();
+            assert_eq!((c.len(), s), (cells, size));
+            for (col, row, w) in &c {
+                assert!(*col < s.0 && *row < s.1);
+                assert_eq!(w.len(), k);
+                assert!(w.iter().all(|&x| x >= 0.0));
+                assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+            }
+            // Every input appears alone at some cell (the corners are the inputs themselves).
+            for i in 0..k {
+                assert!(
+                    c.iter().any(|(_, _, w)| w[i] == 1.0),
+                    "input {i} has no corner"
+                );
+            }
+        }
+        // Bilinear corners follow the documented placement: 0 top left, 3 bottom right.
+        let (c, _) = grid_cells(4, 3).unwrap();
+        assert_eq!(c[0].2, vec![1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(c[8].2, vec![0.0, 0.0, 0.0, 1.0]);
+        assert!(
+            grid_cells(5, 3).is_err() && grid_cells(1, 3).is_err() && grid_cells(4, 1).is_err()
+        );
+    }
+}

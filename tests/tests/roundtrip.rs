@@ -168,6 +168,36 @@ fn shipped_small_manifest_bakes_and_renders_a_grid() {
     );
     let img = image::open(&out).unwrap();
     assert_eq!((img.width(), img.height()), (96, 96));
+    // One blend as EXR (linear float) and as PNG with --method splat: valid files, deterministic.
+    for (file, method) in [("b.exr", "query"), ("b.png", "splat")] {
+        let out = dir.join(file);
+        let args = [
+            "blend",
+            manifest.to_str().unwrap(),
+            "--weights",
+            "0.1,0.2,0.3,0.4",
+            "--size",
+            "40x30",
+            "--method",
+            method,
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        otbake_ok(&dir, &args);
+        let first = std::fs::read(&out).unwrap();
+        otbake_ok(&dir, &args);
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            first,
+            "{file} differs between runs"
+        );
+        if file.ends_with(".exr") {
+            assert_eq!(&first[..4], &[0x76, 0x2f, 0x31, 0x01], "EXR magic");
+        } else {
+            let img = image::open(&out).unwrap();
+            assert_eq!((img.width(), img.height()), (40, 30));
+        }
+    }
     let points = dir.join("duck.npy");
     otbake_ok(
         &dir,
