@@ -1,6 +1,8 @@
 //! Shared helpers for the end-to-end tests: running the `otbake` binary, scratch directories,
 //! synthetic inputs with known closed forms.
 
+pub mod fuzz;
+
 use otbake::imageio::{write_image, Rgba};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -141,4 +143,42 @@ pub fn shared_data() -> PathBuf {
         .join("../shared/data")
         .canonicalize()
         .expect("../shared/data beside the repository")
+}
+
+/// One fuzz corpus entry: a proxy archive and the maps baked against it.
+#[derive(Clone)]
+pub struct CorpusCase {
+    /// Proxy archive bytes.
+    pub proxy: Vec<u8>,
+    /// Map archive bytes.
+    pub maps: Vec<Vec<u8>>,
+}
+
+/// Loads the corpus: every sub-directory of `dir` holding `proxy.otb` and `*.otb` maps.
+pub fn fuzz_corpus(dir: &Path) -> Vec<CorpusCase> {
+    let mut cases = Vec::new();
+    let mut subdirs: Vec<_> = std::fs::read_dir(dir)
+        .expect("fuzz corpus directory")
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    subdirs.sort();
+    for d in subdirs.into_iter().filter(|d| d.is_dir()) {
+        let mut maps: Vec<_> = std::fs::read_dir(&d)
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                p.extension().is_some_and(|x| x == "otb")
+                    && p.file_name().is_some_and(|n| n != "proxy.otb")
+            })
+            .collect();
+        maps.sort();
+        cases.push(CorpusCase {
+            proxy: std::fs::read(d.join("proxy.otb")).unwrap(),
+            maps: maps.iter().map(|p| std::fs::read(p).unwrap()).collect(),
+        });
+    }
+    assert!(!cases.is_empty(), "empty fuzz corpus in {}", dir.display());
+    cases
 }
