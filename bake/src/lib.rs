@@ -24,4 +24,5 @@ pub mod render;
 pub mod sample;
 pub mod solve;
 pub mod store;
+pub mod texture;
 pub mod tree;

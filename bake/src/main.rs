@@ -136,6 +136,23 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Render a texture whose blend weights vary per pixel: perlin:SCALE,SEED, zigzag, or a,b,..
+    Texture {
+        /// Manifest file.
+        manifest: PathBuf,
+        /// Weight field: `perlin:SCALE,SEED`, `zigzag`, or constant weights `a,b,..`.
+        #[arg(long, value_parser = otbake::texture::WeightField::parse)]
+        weights: otbake::texture::WeightField,
+        /// Image size WxH in pixels.
+        #[arg(long, default_value = "512x512", value_parser = parse_size)]
+        size: (usize, usize),
+        /// Gaussian kernel standard deviation in pixels.
+        #[arg(long, default_value_t = 0.5)]
+        sigma: f32,
+        /// Output image (.png or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Write an input's map as an n × 2d float32 .npy: proxy position, then mapped position (tree order).
     Points {
         /// Manifest file.
@@ -331,6 +348,38 @@ fn run(cli: Cli) -> Result<()> {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let img = render_grid(&archives, steps, &settings)?;
+            write_image(&output, &img)?;
+        }
+        Command::Texture {
+            manifest,
+            weights,
+            size,
+            sigma,
+            output,
+        } => {
+            if !(sigma.is_finite() && sigma > 0.0) {
+                bail!("--sigma {sigma}: use a positive number of pixels");
+            }
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            let archives = Archives::load(&m)?;
+            let maps = archives.maps()?;
+            if let otbake::texture::WeightField::Constant(w) = &weights {
+                if w.len() != maps.len() {
+                    bail!(
+                        "--weights has {} values but the manifest has {} inputs: give one weight per input",
+                        w.len(),
+                        maps.len()
+                    );
+                }
+            }
+            let img = otbake::texture::render_texture(
+                archives.proxy()?,
+                &maps,
+                &weights,
+                size.0,
+                size.1,
+                sigma,
+            )?;
             write_image(&output, &img)?;
         }
         Command::Points {

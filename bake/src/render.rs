@@ -112,6 +112,12 @@ fn composite(maps: &[Map<'_>]) -> Composite {
     }
 }
 
+/// One pixel of a blend of `maps` with `weights`, from its mass and premultiplied color (the maps'
+/// shared composite rule).
+pub fn shade_pixel(maps: &[Map<'_>], _weights: &[f32], mass: f32, color: [f32; 3]) -> [f32; 4] {
+    shade(composite(maps), mass, color)
+}
+
 /// One pixel from blended mass and premultiplied color.
 fn shade(rule: Composite, mass: f32, color: [f32; 3]) -> [f32; 4] {
     match rule {

@@ -214,3 +214,57 @@ fn shipped_small_manifest_bakes_and_renders_a_grid() {
     assert!(String::from_utf8_lossy(&bytes[..128]).contains("'shape': (2000, 4)"));
     assert_eq!(bytes.len(), 128 + 2000 * 4 * 4);
 }
+
+#[test]
+fn per_pixel_weights_equal_single_weight_queries() {
+    use otbake::texture::{render_texture, WeightField};
+    let m = shapes_manifest("rt-texture", 3000, 0);
+    bake(&m, &BakeOptions::default()).unwrap();
+    let a = Archives::load(&m).unwrap();
+    let maps = a.maps().unwrap();
+    let (w, h, sigma_px) = (48usize, 32usize, 0.8f32);
+    for field in [
+        WeightField::Perlin {
+            scale: 3.0,
+            seed: 5,
+        },
+        WeightField::Zigzag,
+    ] {
+        let img = render_texture(a.proxy().unwrap(), &maps, &field, w, h, sigma_px).unwrap();
+        let blend = Blend::new(a.proxy().unwrap(), &maps).unwrap();
+        let mut weights = vec![0.0f32; 4];
+        let mut distinct = std::collections::BTreeSet::new();
+        for (y, x) in [(0, 0), (5, 7), (16, 24), (31, 47), (20, 3), (9, 40)] {
+            // Square tiles of min(w, h) pixels; the weight field spans the whole image.
+            let tile = h as f32;
+            field.weights(
+                4,
+                (x as f32 + 0.5) / w as f32,
+                (y as f32 + 0.5) / h as f32,
+                &mut weights,
+            );
+            distinct.insert(weights.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+            let p = [
+                ((x as f32 + 0.5) / tile).fract(),
+                ((y as f32 + 0.5) / tile).fract(),
+            ];
+            let v = blend
+                .point(
+                    &weights,
+                    &p,
+                    Kernel {
+                        sigma: sigma_px / tile,
+                    },
+                )
+                .unwrap();
+            let want = otbake::render::shade_pixel(&maps, &weights, v.mass, v.color);
+            let i = (y * w + x) * 4;
+            assert_eq!(
+                &img.pixels[i..i + 4],
+                &want[..],
+                "{field:?} pixel ({x}, {y})"
+            );
+        }
+        assert!(distinct.len() > 3, "{field:?}: weights hardly vary");
+    }
+}
