@@ -149,6 +149,10 @@ enum Command {
         /// Gaussian kernel standard deviation in pixels.
         #[arg(long, default_value_t = 0.5)]
         sigma: f32,
+        /// Level of detail: show this many texture tiles per image side, each pixel one range query
+        /// over its footprint (instead of a point query per pixel).
+        #[arg(long)]
+        lod: Option<f32>,
         /// Output image (.png or .exr).
         #[arg(short, long)]
         output: PathBuf,
@@ -355,6 +359,7 @@ fn run(cli: Cli) -> Result<()> {
             weights,
             size,
             sigma,
+            lod,
             output,
         } => {
             if !(sigma.is_finite() && sigma > 0.0) {
@@ -372,14 +377,27 @@ fn run(cli: Cli) -> Result<()> {
                     );
                 }
             }
-            let img = otbake::texture::render_texture(
-                archives.proxy()?,
-                &maps,
-                &weights,
-                size.0,
-                size.1,
-                sigma,
-            )?;
+            let img = match lod {
+                Some(r) if !(r.is_finite() && r > 0.0) => {
+                    bail!("--lod {r}: use a positive number of tiles")
+                }
+                Some(r) => otbake::texture::render_lod(
+                    archives.proxy()?,
+                    &maps,
+                    &weights,
+                    size.0,
+                    size.1,
+                    r,
+                )?,
+                None => otbake::texture::render_texture(
+                    archives.proxy()?,
+                    &maps,
+                    &weights,
+                    size.0,
+                    size.1,
+                    sigma,
+                )?,
+            };
             write_image(&output, &img)?;
         }
         Command::Points {

@@ -262,3 +262,77 @@ mod tests {
         assert!(WeightField::parse("a,b").is_err());
     }
 }
+
+/// Renders a minified texture by range queries (level of detail, paper §6.2 and Fig. 12): the image
+/// shows `repeats × repeats` tiles of the texture, so every pixel covers a footprint of
+/// `repeats / min(width, height)` of the texture per axis, and its value is the exact average of the
+/// blend over that footprint — one range query (whole nodes taken from stored sums), not a sum over
+/// the footprint's texels. Footprints that cross a tile edge are split and wrapped.
+pub fn render_lod<'a>(
+    proxy: Proxy<'a>,
+    maps: &[Map<'a>],
+    field: &WeightField,
+    width: usize,
+    height: usize,
+    repeats: f32,
+) -> Result<Rgba, RenderError> {
+    let runtime = |context: &str| {
+        let context = context.to_string();
+        move |source| RenderError::Runtime { context, source }
+    };
+    let blend = Blend::new(proxy, maps).map_err(runtime("maps"))?;
+    if blend.dim() != 2 {
+        return Err(RenderError::NotAnImage(blend.dim()));
+    }
+    let k = maps.len();
+    let per_px = repeats / width.min(height) as f32;
+    let mut img = Rgba::filled(width, height, [0.0; 4]);
+    img.pixels
+        .par_chunks_mut(width * 4)
+        .enumerate()
+        .try_for_each(|(y, row)| -> Result<(), otbake_runtime::Error> {
+            let mut w = vec![0.0f32; k];
+            for x in 0..width {
+                field.weights(
+                    k,
+                    (x as f32 + 0.5) / width as f32,
+                    (y as f32 + 0.5) / height as f32,
+                    &mut w,
+                );
+                let (mut mass, mut color) = (0.0f32, [0.0f32; 3]);
+                let lo = [(x as f32 * per_px).fract(), (y as f32 * per_px).fract()];
+                for (ax, ay) in wrapped(lo[0], per_px.min(1.0))
+                    .into_iter()
+                    .flatten()
+                    .flat_map(|a| {
+                        wrapped(lo[1], per_px.min(1.0))
+                            .into_iter()
+                            .flatten()
+                            .map(move |b| (a, b))
+                    })
+                {
+                    let r = blend.range(&w, &[ax.0, ay.0], &[ax.1, ay.1])?;
+                    mass += r.mass;
+                    for c in 0..3 {
+                        color[c] += r.color[c];
+                    }
+                }
+                let area = per_px.min(1.0) * per_px.min(1.0);
+                let px = crate::render::shade_pixel(maps, &w, mass / area, color.map(|c| c / area));
+                row[x * 4..x * 4 + 4].copy_from_slice(&px);
+            }
+            Ok(())
+        })
+        .map_err(runtime("range query"))?;
+    Ok(img)
+}
+
+/// The interval [`lo`, `lo + len`] on the unit circle as at most two intervals in [0, 1].
+fn wrapped(lo: f32, len: f32) -> [Option<(f32, f32)>; 2] {
+    let hi = lo + len;
+    if hi <= 1.0 {
+        [Some((lo, hi)), None]
+    } else {
+        [Some((lo, 1.0)), Some((0.0, hi - 1.0))]
+    }
+}

@@ -268,3 +268,44 @@ fn per_pixel_weights_equal_single_weight_queries() {
         assert!(distinct.len() > 3, "{field:?}: weights hardly vary");
     }
 }
+
+#[test]
+fn level_of_detail_pixels_conserve_the_blend_mass() {
+    use otbake::texture::{render_lod, WeightField};
+    // Gray luminance inputs (additive display, color ratio 1): a pixel's red value is the average
+    // mass over its footprint, with no clamping.
+    let dir = scratch("rt-lod");
+    otbake_tests::write_gaussian_exr(&dir.join("a.exr"), 64, [0.4, 0.45], [0.1, 0.15]);
+    otbake_tests::write_gaussian_exr(&dir.join("b.exr"), 64, [0.6, 0.5], [0.12, 0.08]);
+    let body = "[output]\ndir = \"out\"\n[proxy]\nkind = \"gaussian\"\nsamples = 3000\n[solver]\nkind = \"sliced\"\n\
+                [[input]]\nname = \"a\"\npath = \"a.exr\"\n[[input]]\nname = \"b\"\npath = \"b.exr\"\n";
+    let m = Manifest::load(&write_manifest(&dir, "m.toml", body)).unwrap();
+    bake(&m, &BakeOptions::default()).unwrap();
+    let a = Archives::load(&m).unwrap();
+    let maps = a.maps().unwrap();
+    let w = [0.3f32, 0.7];
+    let mean_mass: f32 = maps.iter().zip(w).map(|(m, w)| m.mean_mass() * w).sum();
+    // One tile across 24 pixels: each pixel is the exact average over its 1/24 × 1/24 footprint, so
+    // the pixels' values times their area add up to the blend's whole mass.
+    let n = 24;
+    let img = render_lod(
+        a.proxy().unwrap(),
+        &maps,
+        &WeightField::Constant(w.to_vec()),
+        n,
+        n,
+        1.0,
+    )
+    .unwrap();
+    let total: f32 = img.pixels.chunks(4).map(|p| p[0] / (n * n) as f32).sum();
+    assert!(
+        (total - mean_mass).abs() < 1e-3 * mean_mass,
+        "{total} vs {mean_mass}"
+    );
+    // And the footprints really differ: the image is not flat.
+    let (lo, hi) = img
+        .pixels
+        .chunks(4)
+        .fold((f32::MAX, 0.0f32), |(l, h), p| (l.min(p[0]), h.max(p[0])));
+    assert!(hi > 4.0 * lo.max(1e-6), "flat LOD image: {lo}..{hi}");
+}
