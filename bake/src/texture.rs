@@ -313,8 +313,8 @@ pub fn render_lod<'a>(
                 {
                     let r = blend.range(&w, &[ax.0, ay.0], &[ax.1, ay.1])?;
                     mass += r.mass;
-                    for c in 0..3 {
-                        color[c] += r.color[c];
+                    for (acc, c) in color.iter_mut().zip(r.color) {
+                        *acc += c;
                     }
                 }
                 let area = per_px.min(1.0) * per_px.min(1.0);
