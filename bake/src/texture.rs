@@ -195,74 +195,6 @@ pub fn render_texture<'a>(
     Ok(img)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fields_give_valid_weights_everywhere() {
-        for field in [
-            WeightField::Perlin {
-                scale: 4.0,
-                seed: 3,
-            },
-            WeightField::Zigzag,
-        ] {
-            for k in 1..=4 {
-                let mut w = vec![0.0; k];
-                for i in 0..400 {
-                    let (u, v) = ((i % 20) as f32 / 19.0, (i / 20) as f32 / 19.0);
-                    field.weights(k, u, v, &mut w);
-                    assert!(
-                        w.iter().all(|x| *x >= 0.0 && x.is_finite()),
-                        "{field:?} k={k}: {w:?}"
-                    );
-                    assert!(
-                        (w.iter().sum::<f32>() - 1.0).abs() < 1e-5,
-                        "{field:?} k={k}: {w:?}"
-                    );
-                }
-            }
-        }
-        // Perlin weights really vary over the image; zigzag starts at input 0 and ends at the last.
-        let mut w = [0.0; 2];
-        let mut seen = (f32::MAX, f32::MIN);
-        for i in 0..400 {
-            WeightField::Perlin {
-                scale: 4.0,
-                seed: 3,
-            }
-            .weights(2, (i % 20) as f32 / 19.0, (i / 20) as f32 / 19.0, &mut w);
-            seen = (seen.0.min(w[0]), seen.1.max(w[0]));
-        }
-        assert!(seen.0 < 0.1 && seen.1 > 0.9, "perlin weights span {seen:?}");
-        let mut w4 = [0.0; 4];
-        WeightField::Zigzag.weights(4, 0.0, 0.5, &mut w4);
-        assert_eq!(w4[0], 1.0);
-        WeightField::Zigzag.weights(4, 1.0, 0.5, &mut w4);
-        assert_eq!(w4[3], 1.0);
-    }
-
-    #[test]
-    fn parsing() {
-        assert_eq!(
-            WeightField::parse("perlin:4,7").unwrap(),
-            WeightField::Perlin {
-                scale: 4.0,
-                seed: 7
-            }
-        );
-        assert_eq!(WeightField::parse("zigzag").unwrap(), WeightField::Zigzag);
-        assert_eq!(
-            WeightField::parse("0.5, 0.5").unwrap(),
-            WeightField::Constant(vec![0.5, 0.5])
-        );
-        assert!(WeightField::parse("perlin:x,1").is_err());
-        assert!(WeightField::parse("perlin:-1,1").is_err());
-        assert!(WeightField::parse("a,b").is_err());
-    }
-}
-
 /// Renders a minified texture by range queries (level of detail, paper §6.2 and Fig. 12): the image
 /// shows `repeats × repeats` tiles of the texture, so every pixel covers a footprint of
 /// `repeats / min(width, height)` of the texture per axis, and its value is the exact average of the
@@ -334,5 +266,73 @@ fn wrapped(lo: f32, len: f32) -> [Option<(f32, f32)>; 2] {
         [Some((lo, hi)), None]
     } else {
         [Some((lo, 1.0)), Some((0.0, hi - 1.0))]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fields_give_valid_weights_everywhere() {
+        for field in [
+            WeightField::Perlin {
+                scale: 4.0,
+                seed: 3,
+            },
+            WeightField::Zigzag,
+        ] {
+            for k in 1..=4 {
+                let mut w = vec![0.0; k];
+                for i in 0..400 {
+                    let (u, v) = ((i % 20) as f32 / 19.0, (i / 20) as f32 / 19.0);
+                    field.weights(k, u, v, &mut w);
+                    assert!(
+                        w.iter().all(|x| *x >= 0.0 && x.is_finite()),
+                        "{field:?} k={k}: {w:?}"
+                    );
+                    assert!(
+                        (w.iter().sum::<f32>() - 1.0).abs() < 1e-5,
+                        "{field:?} k={k}: {w:?}"
+                    );
+                }
+            }
+        }
+        // Perlin weights really vary over the image; zigzag starts at input 0 and ends at the last.
+        let mut w = [0.0; 2];
+        let mut seen = (f32::MAX, f32::MIN);
+        for i in 0..400 {
+            WeightField::Perlin {
+                scale: 4.0,
+                seed: 3,
+            }
+            .weights(2, (i % 20) as f32 / 19.0, (i / 20) as f32 / 19.0, &mut w);
+            seen = (seen.0.min(w[0]), seen.1.max(w[0]));
+        }
+        assert!(seen.0 < 0.1 && seen.1 > 0.9, "perlin weights span {seen:?}");
+        let mut w4 = [0.0; 4];
+        WeightField::Zigzag.weights(4, 0.0, 0.5, &mut w4);
+        assert_eq!(w4[0], 1.0);
+        WeightField::Zigzag.weights(4, 1.0, 0.5, &mut w4);
+        assert_eq!(w4[3], 1.0);
+    }
+
+    #[test]
+    fn parsing() {
+        assert_eq!(
+            WeightField::parse("perlin:4,7").unwrap(),
+            WeightField::Perlin {
+                scale: 4.0,
+                seed: 7
+            }
+        );
+        assert_eq!(WeightField::parse("zigzag").unwrap(), WeightField::Zigzag);
+        assert_eq!(
+            WeightField::parse("0.5, 0.5").unwrap(),
+            WeightField::Constant(vec![0.5, 0.5])
+        );
+        assert!(WeightField::parse("perlin:x,1").is_err());
+        assert!(WeightField::parse("perlin:-1,1").is_err());
+        assert!(WeightField::parse("a,b").is_err());
     }
 }
