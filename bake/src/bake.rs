@@ -120,7 +120,7 @@ pub struct BakeOptions<'a> {
 
 /// Decodes an input into its density grid.
 pub fn load_input(spec: &InputSpec) -> Result<Grid, BakeError> {
-    input::load(&spec.path, spec.density).map_err(|source| BakeError::Input {
+    input::load_with(&spec.path, spec.density, &spec.options).map_err(|source| BakeError::Input {
         name: spec.name.clone(),
         source,
     })
@@ -136,6 +136,12 @@ fn input_identity(
     key.field("input-file", &digest)
         .debug("density", &spec.density)
         .field("input-seed", &spec.seed.to_le_bytes());
+    if spec.kind.is_brdf() {
+        key.field(
+            "brdf-resolution",
+            &(spec.options.brdf_resolution as u64).to_le_bytes(),
+        );
+    }
     Ok(())
 }
 

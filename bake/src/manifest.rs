@@ -22,9 +22,12 @@
 //! name = "duck"
 //! path = "data/duck.png"        # relative to this file
 //! density = "inverted"          # luminance (default) | inverted | alpha
+//!
+//! [brdf]                        # optional; for .binary (MERL) and .brdf (Cornell) inputs
+//! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
 //! ```
 
-use crate::input::{DensityChannel, InputKind};
+use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
 use crate::solve::{ExactSettings, SlicedSettings, SolverSettings};
 use serde::Deserialize;
@@ -123,6 +126,8 @@ pub struct InputSpec {
     pub density: DensityChannel,
     /// Seed of this input's importance sampling.
     pub seed: u64,
+    /// How the file becomes a grid beyond `density` (BRDF grid resolution).
+    pub options: LoadOptions,
 }
 
 impl Manifest {
@@ -191,6 +196,19 @@ impl Manifest {
                 "no [[input]] tables: add at least one input".into(),
             ));
         }
+        let mut options = LoadOptions::default();
+        if let Some(b) = &raw.brdf {
+            if let Some(r) = &b.resolution {
+                let v = *r.get_ref();
+                if !(2..=1024).contains(&v) {
+                    return Err(at(
+                        Some(r.span()),
+                        format!("`brdf.resolution` = {v} is out of range: use 2 to 1024 cells per axis (the paper uses 180; tests 16-32)"),
+                    ));
+                }
+                options.brdf_resolution = v as usize;
+            }
+        }
         let mut inputs = Vec::new();
         for input in &raw.inputs {
             let name = input.name.get_ref();
@@ -229,6 +247,16 @@ impl Manifest {
                     ),
                 ));
             };
+            if kind.is_brdf() {
+                if let Some(d) = &input.density {
+                    if *d.get_ref() != DensityChannel::Luminance {
+                        return Err(at(
+                            Some(d.span()),
+                            format!("input {name:?} is a BRDF: its density is always the luminance; remove `density`"),
+                        ));
+                    }
+                }
+            }
             if !resolved.is_file() {
                 return Err(at(
                     Some(input.path.span()),
@@ -239,8 +267,13 @@ impl Manifest {
                 name: name.clone(),
                 kind,
                 path: resolved,
-                density: input.density.unwrap_or_default(),
+                density: input
+                    .density
+                    .as_ref()
+                    .map(|d| *d.get_ref())
+                    .unwrap_or_default(),
                 seed: input.seed.unwrap_or(0),
+                options,
             });
         }
 
@@ -409,6 +442,13 @@ struct RawManifest {
     solver: RawSolver,
     #[serde(rename = "input", default)]
     inputs: Vec<RawInput>,
+    brdf: Option<RawBrdf>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBrdf {
+    resolution: Option<Spanned<u64>>,
 }
 
 #[derive(Deserialize)]
@@ -461,7 +501,7 @@ struct RawSolver {
 struct RawInput {
     name: Spanned<String>,
     path: Spanned<String>,
-    density: Option<DensityChannel>,
+    density: Option<Spanned<DensityChannel>>,
     seed: Option<u64>,
 }
 

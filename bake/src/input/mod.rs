@@ -11,6 +11,12 @@
 //! covers `[x/W, (x+1)/W] × [y/H, (y+1)/H]` and the grid buffer is the image in its natural row-major
 //! order. Volumes and BRDF grids follow the same rule with their own axes (x fastest).
 //!
+//! BRDFs (isotropic, measured): axis 0 = θi, axis 1 = θo, axis 2 = φd = φo − φi, with
+//! `(θi, θo, φd) ∈ [0, π/2] × [0, π/2] × [0, π]` mapped linearly to `[0,1]³` (φd is folded into
+//! `[0, π]` by isotropy and reciprocity). The grid is `res³` cells (`[brdf] resolution`, default
+//! 180); cell mass = luminance, no Jacobian. The measure, the value formula and the sampling pdf are
+//! in [`crate::brdf`].
+//!
 //! # Density and color
 //!
 //! Pixels are decoded to linear RGB plus a linear alpha (see [`load_image`]); `Y = 0.2126 R +
@@ -40,6 +46,10 @@ use std::path::{Path, PathBuf};
 pub enum InputKind {
     /// PNG, JPEG (sRGB) or EXR (linear) images: 2D.
     Image,
+    /// MERL isotropic BRDF (`.binary`): 3D over (θi, θo, φd).
+    Merl,
+    /// Cornell irregularly sampled isotropic BRDF (`.brdf`): 3D over (θi, θo, φd).
+    Cornell,
 }
 
 /// File extensions (lower case) of every input kind.
@@ -48,6 +58,8 @@ pub const EXTENSIONS: &[(&str, InputKind)] = &[
     ("jpg", InputKind::Image),
     ("jpeg", InputKind::Image),
     ("exr", InputKind::Image),
+    ("binary", InputKind::Merl),
+    ("brdf", InputKind::Cornell),
 ];
 
 impl InputKind {
@@ -61,7 +73,13 @@ impl InputKind {
     pub fn dim(self) -> usize {
         match self {
             InputKind::Image => 2,
+            InputKind::Merl | InputKind::Cornell => 3,
         }
+    }
+
+    /// Whether inputs of this kind are BRDFs (resampled to a `[brdf] resolution` grid).
+    pub fn is_brdf(self) -> bool {
+        matches!(self, InputKind::Merl | InputKind::Cornell)
     }
 
     /// `.png, .jpg, …`: for error messages.
@@ -74,10 +92,50 @@ impl InputKind {
     }
 }
 
-/// Loads any supported input file as a density grid.
+/// Settings of how inputs are turned into grids, beyond the density channel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Cells per axis of BRDF grids.
+    pub brdf_resolution: usize,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            brdf_resolution: crate::brdf::DEFAULT_RESOLUTION,
+        }
+    }
+}
+
+/// Loads any supported input file as a density grid (default [`LoadOptions`]).
 pub fn load(path: &Path, channel: DensityChannel) -> Result<Grid, InputError> {
-    match InputKind::from_path(path) {
+    load_with(path, channel, &LoadOptions::default())
+}
+
+/// Loads any supported input file as a density grid.
+pub fn load_with(
+    path: &Path,
+    channel: DensityChannel,
+    options: &LoadOptions,
+) -> Result<Grid, InputError> {
+    let kind = InputKind::from_path(path);
+    if kind.is_some_and(InputKind::is_brdf) && channel != DensityChannel::Luminance {
+        return Err(InputError::BrdfValue {
+            path: path.to_path_buf(),
+            message: format!("density `{channel}` does not apply to BRDFs: their density is the luminance (remove `density`)"),
+        });
+    }
+    let res = options.brdf_resolution;
+    match kind {
         Some(InputKind::Image) => load_image(path, channel),
+        Some(InputKind::Merl) => {
+            let merl = crate::brdf::merl::Merl::read(path)?;
+            crate::brdf::to_grid(path, res, |a, b, c| merl.eval(a, b, c))
+        }
+        Some(InputKind::Cornell) => {
+            let lattice = crate::brdf::cornell::Cornell::read(path)?.lattice();
+            crate::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
+        }
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),
             ext: path
@@ -166,6 +224,12 @@ pub enum InputError {
 
     #[error("image {} gives an invalid density: {message}; rescale the image's values", path.display())]
     InvalidDensity { path: PathBuf, message: String },
+
+    #[error(transparent)]
+    Brdf(#[from] crate::brdf::BrdfError),
+
+    #[error("BRDF {}: {message}", path.display())]
+    BrdfValue { path: PathBuf, message: String },
 
     #[error("invalid density grid: {0}")]
     GridShape(String),

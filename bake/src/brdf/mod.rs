@@ -1,0 +1,363 @@
+//! Isotropic measured BRDFs as 3D densities over `(θi, θo, φd)` (paper §6.4): readers and writers
+//! ([`merl`], [`cornell`]), resampling to a grid ([`to_grid`]), run-time evaluation and importance
+//! sampling of a blend ([`eval`]), and images ([`render`]).
+//!
+//! # Domain
+//!
+//! An isotropic BRDF depends on the two polar angles and the azimuth difference
+//! `φd = φo − φi` only; with reciprocity `f(ωi, ωo) = f(ωo, ωi)` and isotropy `φd` and `−φd` give
+//! the same value, so `φd` is folded into `[0, π]`. The domain `(θi, θo, φd) ∈ [0, π/2]² × [0, π]`
+//! maps to the unit cube by `u = (θi / (π/2), θo / (π/2), φd / π)`: axis 0 = θi, axis 1 = θo,
+//! axis 2 = φd (axis 0 fastest in the grid buffers, as for every input; see [`crate::input`]).
+//! Both directions point away from the surface, so the mirror direction of `ωi` is at `φd = π`.
+//!
+//! # Measure and value formula
+//!
+//! A grid cell's mass is the BRDF's **luminance at the cell centre, without any Jacobian**:
+//! `mass_c = Y(f(θi, θo, φd))` with `Y = 0.2126 R + 0.7152 G + 0.0722 B`, `ratio_c = rgb / Y`
+//! (0 where `Y = 0`). The baked density `ρ(u)` is therefore a pdf over the unit cube in the
+//! `(θi, θo, φd)` parameter measure (uniform in angles), and `mean_mass = mean_c Y_c`. Because the
+//! cube has volume 1, the cell normalization is 1 and, for a blend with weights `w`,
+//!
+//! ```text
+//! f_rgb(ωi, ωo) = ρ_w(u) · Σ_k w_k mean_mass_k · ratio_w(u)     (= PointValue::color)
+//! f_Y(ωi, ωo)   = ρ_w(u) · Σ_k w_k mean_mass_k                  (= PointValue::mass)
+//! ```
+//!
+//! with `u = u(ωi, ωo)` as above; at weights `(1, 0, …)` this is the input grid's value smoothed
+//! by the query kernel. Why no Jacobian: evaluation — the operation a renderer calls most — then
+//! never divides by `sin θ` or `cos θ`, which vanish at the pole and the horizon and would amplify
+//! the kernel estimate's noise there; the paper stores plain luminance too.
+//!
+//! # Importance sampling
+//!
+//! The blend's points (`Blend::sample`) follow `ρ_w`, i.e. `f_Y` in the angle measure. A sample is
+//! turned into a pair of directions by drawing `φi` uniformly in `[0, 2π)` and the sign of `φd`
+//! with probability 1/2 each. The joint density of `(ωi, ωo)` in the product of solid angles
+//! (`dω = sin θ dθ dφ`) is then
+//!
+//! ```text
+//! pdf(ωi, ωo) = ρ_w(u) · 4/π³ (θi, θo, φd → u) · 1/(2π) (φi) · 1/2 (sign) / (sin θi sin θo)
+//!             = ρ_w(u) / (π⁴ sin θi sin θo)
+//! ```
+//!
+//! so that `E[f(ωi, ωo) cos θo / pdf] = ∫∫ f cos θo dωi dωo` ([`eval::BrdfBlend::sample`] returns
+//! the value and this pdf; the tests check the estimate against direct integration).
+
+// RGB and 3-vector loops index several arrays at once; indices read better than zips here.
+#![allow(clippy::needless_range_loop)]
+
+pub mod cie;
+pub mod cornell;
+pub mod eval;
+pub mod merl;
+pub mod render;
+
+use crate::input::{Grid, InputError};
+use rayon::prelude::*;
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::path::{Path, PathBuf};
+
+/// Default grid resolution per axis (the paper's 180³).
+pub const DEFAULT_RESOLUTION: usize = 180;
+
+/// Rec. 709 / sRGB luminance weights (the same as the image inputs').
+pub const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// Why a BRDF file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum BrdfError {
+    #[error("cannot read BRDF file {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("MERL BRDF {}: {message}", path.display())]
+    Merl { path: PathBuf, message: String },
+    #[error("Cornell BRDF {}:{line}: {message}", path.display())]
+    Cornell {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+}
+
+/// `(θi, θo, φd)` in radians → unit-cube coordinates (axis 0 = θi, 1 = θo, 2 = φd).
+pub fn to_unit(theta_i: f64, theta_o: f64, phi_d: f64) -> [f32; 3] {
+    [
+        (theta_i / FRAC_PI_2) as f32,
+        (theta_o / FRAC_PI_2) as f32,
+        (phi_d / PI) as f32,
+    ]
+}
+
+/// Unit-cube coordinates → `(θi, θo, φd)` in radians.
+pub fn from_unit(u: &[f32]) -> (f64, f64, f64) {
+    (
+        f64::from(u[0]) * FRAC_PI_2,
+        f64::from(u[1]) * FRAC_PI_2,
+        f64::from(u[2]) * PI,
+    )
+}
+
+/// Folds an azimuth difference into `[0, π]` (isotropy and reciprocity).
+pub fn fold_phi(phi: f64) -> f64 {
+    let d = phi.rem_euclid(2.0 * PI);
+    if d > PI {
+        2.0 * PI - d
+    } else {
+        d
+    }
+}
+
+/// Unit direction at polar angle `theta` and azimuth `phi` (z = normal).
+pub fn direction(theta: f64, phi: f64) -> [f64; 3] {
+    [
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    ]
+}
+
+/// `(θi, θo, φd)` of a pair of unit directions in the local frame (z = normal); `None` when either
+/// lies below the horizon.
+pub fn angles(wi: [f64; 3], wo: [f64; 3]) -> Option<(f64, f64, f64)> {
+    if wi[2] < 0.0 || wo[2] < 0.0 {
+        return None;
+    }
+    let ti = wi[2].clamp(-1.0, 1.0).acos();
+    let to = wo[2].clamp(-1.0, 1.0).acos();
+    let pd = fold_phi(wo[1].atan2(wo[0]) - wi[1].atan2(wi[0]));
+    Some((ti, to, pd))
+}
+
+/// Luminance of linear RGB.
+pub fn luminance(rgb: [f64; 3]) -> f64 {
+    LUMINANCE[0] * rgb[0] + LUMINANCE[1] * rgb[1] + LUMINANCE[2] * rgb[2]
+}
+
+/// Centre of cell `i` of `n` on `[0, extent]`.
+fn centre(i: usize, n: usize, extent: f64) -> f64 {
+    (i as f64 + 0.5) / n as f64 * extent
+}
+
+/// Resamples a BRDF `f(θi, θo, φd) → linear RGB` to a `res³` grid by point sampling at cell centres
+/// (mass = luminance, ratio = rgb / luminance; see the module docs). Values must be finite and
+/// `>= 0`; the error names the offending angles.
+pub fn to_grid<F>(path: &Path, res: usize, f: F) -> Result<Grid, InputError>
+where
+    F: Fn(f64, f64, f64) -> [f64; 3] + Sync,
+{
+    if !(2..=1024).contains(&res) {
+        return Err(InputError::BrdfValue {
+            path: path.to_path_buf(),
+            message: format!("grid resolution {res} is out of range: use 2 to 1024 cells per axis (`[brdf] resolution`, default 180)"),
+        });
+    }
+    let cells = res * res * res;
+    let values: Vec<[f64; 3]> = (0..cells)
+        .into_par_iter()
+        .map(|c| {
+            let (a, b, p) = (c % res, (c / res) % res, c / (res * res));
+            f(
+                centre(a, res, FRAC_PI_2),
+                centre(b, res, FRAC_PI_2),
+                centre(p, res, PI),
+            )
+        })
+        .collect();
+    if let Some(c) = values
+        .iter()
+        .position(|v| v.iter().any(|x| !(x.is_finite() && *x >= 0.0)))
+    {
+        let (a, b, p) = (c % res, (c / res) % res, c / (res * res));
+        return Err(InputError::BrdfValue {
+            path: path.to_path_buf(),
+            message: format!(
+                "the BRDF is {:?} at θi = {:.4}, θo = {:.4}, φd = {:.4} rad: values must be finite and >= 0",
+                values[c],
+                centre(a, res, FRAC_PI_2),
+                centre(b, res, FRAC_PI_2),
+                centre(p, res, PI)
+            ),
+        });
+    }
+    let mass: Vec<f32> = values.iter().map(|&v| luminance(v) as f32).collect();
+    let ratio: Vec<[f32; 3]> = values
+        .iter()
+        .zip(&mass)
+        .map(|(v, &y)| {
+            if y > 0.0 {
+                let y = f64::from(y);
+                [(v[0] / y) as f32, (v[1] / y) as f32, (v[2] / y) as f32]
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    Grid::new(vec![res; 3], mass, ratio).map_err(|e| match e {
+        InputError::GridNoMass => InputError::BrdfValue {
+            path: path.to_path_buf(),
+            message: "the BRDF is zero everywhere: give a BRDF with some reflectance".into(),
+        },
+        e => e,
+    })
+}
+
+/// The BRDF value of `grid` (built by [`to_grid`]) in the cell containing `(θi, θo, φd)`: the
+/// formula of the module docs with weights `(1)` and no kernel, `ρ · mean · ratio = mass · ratio`.
+pub fn grid_value(grid: &Grid, theta_i: f64, theta_o: f64, phi_d: f64) -> [f64; 3] {
+    let c = grid.cell_index(&to_unit(theta_i, theta_o, phi_d));
+    let y = f64::from(grid.mass[c]);
+    let r = grid.ratio.get(c).copied().unwrap_or([1.0; 3]);
+    [
+        y * f64::from(r[0]),
+        y * f64::from(r[1]),
+        y * f64::from(r[2]),
+    ]
+}
+
+/// `∫∫ f_Y(ωi, ωo) cos θo dωi dωo` over both hemispheres of a grid built by [`to_grid`] (midpoint
+/// rule on its cells): `4π · (π³/4) · mean_c(Y_c cos θo sin θi sin θo)`.
+pub fn grid_integral(grid: &Grid) -> f64 {
+    let n = grid.dims[0];
+    let sum: f64 = grid
+        .mass
+        .iter()
+        .enumerate()
+        .map(|(c, &m)| {
+            let (a, b) = (c % n, (c / n) % n);
+            let (ti, to) = (centre(a, n, FRAC_PI_2), centre(b, n, FRAC_PI_2));
+            f64::from(m) * to.cos() * ti.sin() * to.sin()
+        })
+        .sum();
+    PI.powi(4) * sum / grid.cells() as f64
+}
+
+/// An analytic isotropic, reciprocal BRDF for tests and benchmarks: Lambert plus a normalized
+/// Phong lobe around the mirror direction, `f = kd/π + ks (e+2)/(2π) max(0, r·ωo)^e`, whose
+/// energy never exceeds `kd + ks`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Analytic {
+    /// Diffuse albedo per channel.
+    pub diffuse: [f64; 3],
+    /// Specular scale per channel.
+    pub specular: [f64; 3],
+    /// Phong exponent.
+    pub exponent: f64,
+}
+
+impl Analytic {
+    /// The value at `(θi, θo, φd)`.
+    pub fn eval(&self, theta_i: f64, theta_o: f64, phi_d: f64) -> [f64; 3] {
+        // r·ωo with r the mirror of ωi (φi = 0): cos θi cos θo − sin θi sin θo cos φd.
+        let c = theta_i.cos() * theta_o.cos() - theta_i.sin() * theta_o.sin() * phi_d.cos();
+        let lobe = (self.exponent + 2.0) / (2.0 * PI) * c.max(0.0).powf(self.exponent);
+        let mut out = [0.0; 3];
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = self.diffuse[k] / PI + self.specular[k] * lobe;
+        }
+        out
+    }
+
+    /// `∫∫ f_Y cos θo dωi dωo` by a fine midpoint rule (`n` cells per axis).
+    pub fn integral(&self, n: usize) -> f64 {
+        let sum: f64 = (0..n * n * n)
+            .into_par_iter()
+            .map(|c| {
+                let (a, b, p) = (c % n, (c / n) % n, c / (n * n));
+                let (ti, to, pd) = (
+                    centre(a, n, FRAC_PI_2),
+                    centre(b, n, FRAC_PI_2),
+                    centre(p, n, PI),
+                );
+                luminance(self.eval(ti, to, pd)) * to.cos() * ti.sin() * to.sin()
+            })
+            .sum();
+        PI.powi(4) * sum / (n * n * n) as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PLASTIC: Analytic = Analytic {
+        diffuse: [0.5, 0.2, 0.1],
+        specular: [0.3, 0.3, 0.3],
+        exponent: 20.0,
+    };
+
+    #[test]
+    fn angles_round_trip_and_fold() {
+        for &(ti, to, pd) in &[(0.3, 1.1, 2.0), (1.2, 0.1, 0.4), (0.7, 0.7, PI - 1e-3)] {
+            for phi_i in [0.0, 1.0, -2.5] {
+                let sign = if phi_i < 0.0 { -1.0 } else { 1.0 };
+                let (a, b, c) =
+                    angles(direction(ti, phi_i), direction(to, phi_i + sign * pd)).unwrap();
+                assert!((a - ti).abs() < 1e-9 && (b - to).abs() < 1e-9 && (c - pd).abs() < 1e-9);
+            }
+        }
+        assert!(angles([0.0, 0.0, -1.0], [0.0, 0.0, 1.0]).is_none());
+        assert!((fold_phi(-0.5) - 0.5).abs() < 1e-12);
+        assert!((fold_phi(1.5 * PI) - 0.5 * PI).abs() < 1e-12);
+    }
+
+    /// The measure: grid mass is the luminance itself (no Jacobian), so `grid_value` returns the
+    /// function at cell centres and the mass sums to `mean · cells`.
+    #[test]
+    fn grid_stores_luminance_without_jacobian() {
+        let g = to_grid(Path::new("t"), 12, |a, b, c| PLASTIC.eval(a, b, c)).unwrap();
+        let n = 12;
+        for (a, b, p) in [(0, 0, 0), (3, 7, 11), (11, 11, 5)] {
+            let (ti, to, pd) = (
+                centre(a, n, FRAC_PI_2),
+                centre(b, n, FRAC_PI_2),
+                centre(p, n, PI),
+            );
+            let want = PLASTIC.eval(ti, to, pd);
+            let got = grid_value(&g, ti, to, pd);
+            for k in 0..3 {
+                assert!(
+                    (got[k] - want[k]).abs() <= 1e-5 * want[k].max(1e-3),
+                    "{got:?} {want:?}"
+                );
+            }
+            assert!(
+                (f64::from(g.mass[a + n * (b + n * p)]) - luminance(want)).abs() < 1e-6,
+                "mass is the plain luminance"
+            );
+        }
+    }
+
+    #[test]
+    fn lambert_energy_is_its_albedo() {
+        // ∫∫ (ρ/π) cos θo dωo dωi = ρ · 2π (the ωi hemisphere).
+        let lambert = Analytic {
+            diffuse: [0.5; 3],
+            specular: [0.0; 3],
+            exponent: 1.0,
+        };
+        let want = 0.5 * 2.0 * PI;
+        assert!((lambert.integral(64) / want - 1.0).abs() < 1e-3);
+        let g = to_grid(Path::new("t"), 24, |a, b, c| lambert.eval(a, b, c)).unwrap();
+        assert!((grid_integral(&g) / want - 1.0).abs() < 2e-3);
+    }
+
+    #[test]
+    fn bad_values_and_resolutions_are_errors() {
+        assert!(to_grid(Path::new("t"), 1, |_, _, _| [1.0; 3]).is_err());
+        let e = to_grid(Path::new("t"), 4, |a, _, _| {
+            if a > 1.0 {
+                [f64::NAN; 3]
+            } else {
+                [1.0; 3]
+            }
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("finite"), "{e}");
+        let e = to_grid(Path::new("t"), 4, |_, _, _| [-1.0, 1.0, 1.0]).unwrap_err();
+        assert!(e.to_string().contains(">= 0"), "{e}");
+    }
+}
