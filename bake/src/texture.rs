@@ -100,6 +100,26 @@ impl WeightField {
     }
 }
 
+/// A runtime error in `context` as a render error.
+fn runtime(context: &'static str) -> impl Fn(otbake_runtime::Error) -> RenderError {
+    move |source| RenderError::Runtime {
+        context: context.into(),
+        source,
+    }
+}
+
+/// The blend of `maps`, which must be 2D (textures).
+fn image_blend<'a, 'm>(
+    proxy: Proxy<'a>,
+    maps: &'m [Map<'a>],
+) -> Result<Blend<'a, 'm>, RenderError> {
+    let blend = Blend::new(proxy, maps).map_err(runtime("maps"))?;
+    if blend.dim() != 2 {
+        return Err(RenderError::NotAnImage(blend.dim()));
+    }
+    Ok(blend)
+}
+
 /// 2D gradient noise (Perlin 1985/2002), periodic with period 256 cells; values in about [-0.7, 0.7].
 pub fn perlin(x: f32, y: f32, seed: u64) -> f32 {
     let hash = |ix: i64, iy: i64| -> u64 {
@@ -147,21 +167,10 @@ pub fn render_texture<'a>(
     height: usize,
     sigma_px: f32,
 ) -> Result<Rgba, RenderError> {
-    let blend = Blend::new(proxy, maps).map_err(|source| RenderError::Runtime {
-        context: "maps".into(),
-        source,
-    })?;
-    if blend.dim() != 2 {
-        return Err(RenderError::NotAnImage(blend.dim()));
-    }
+    let blend = image_blend(proxy, maps)?;
     let k = maps.len();
     if let WeightField::Constant(w) = field {
-        blend
-            .check_weights(w)
-            .map_err(|source| RenderError::Runtime {
-                context: "--weights".into(),
-                source,
-            })?;
+        blend.check_weights(w).map_err(runtime("--weights"))?;
     }
     let tile = width.min(height) as f32;
     let kernel = Kernel {
@@ -188,10 +197,7 @@ pub fn render_texture<'a>(
             }
             Ok(())
         })
-        .map_err(|source| RenderError::Runtime {
-            context: "point query".into(),
-            source,
-        })?;
+        .map_err(runtime("point query"))?;
     Ok(img)
 }
 
@@ -208,14 +214,7 @@ pub fn render_lod<'a>(
     height: usize,
     repeats: f32,
 ) -> Result<Rgba, RenderError> {
-    let runtime = |context: &str| {
-        let context = context.to_string();
-        move |source| RenderError::Runtime { context, source }
-    };
-    let blend = Blend::new(proxy, maps).map_err(runtime("maps"))?;
-    if blend.dim() != 2 {
-        return Err(RenderError::NotAnImage(blend.dim()));
-    }
+    let blend = image_blend(proxy, maps)?;
     let k = maps.len();
     let per_px = repeats / width.min(height) as f32;
     let mut img = Rgba::filled(width, height, [0.0; 4]);
