@@ -168,6 +168,70 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Render a θi slice of a BRDF blend on the unit disk (light from the right; paper Fig. 14 right).
+    BrdfSlice {
+        /// Manifest of BRDF inputs.
+        manifest: PathBuf,
+        /// One non-negative weight per input, in manifest order, summing to 1.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            required = true,
+            allow_hyphen_values = true
+        )]
+        weights: Vec<f32>,
+        /// Incident polar angle in degrees.
+        #[arg(long, default_value_t = 45.0)]
+        theta_i: f64,
+        /// Image side in pixels.
+        #[arg(long, default_value_t = 256)]
+        size: usize,
+        /// Kernel standard deviation in unit-cube units.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
+        sigma: f32,
+        /// Exposure (default: 99th percentile of the disk's luminance → 1).
+        #[arg(long)]
+        exposure: Option<f32>,
+        /// Output image (.png or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Render spheres of BRDF blends: a bilinear square for 4 inputs (paper Fig. 14 left).
+    BrdfSpheres {
+        /// Manifest of BRDF inputs.
+        manifest: PathBuf,
+        /// Spheres per side.
+        #[arg(long, default_value_t = 5)]
+        steps: usize,
+        /// Sphere diameter in pixels.
+        #[arg(long, default_value_t = 64)]
+        size: usize,
+        /// Kernel standard deviation in unit-cube units.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
+        sigma: f32,
+        /// Output image (.png or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Export one BRDF blend as a MERL .binary file.
+    BrdfExport {
+        /// Manifest of BRDF inputs.
+        manifest: PathBuf,
+        /// One non-negative weight per input, in manifest order, summing to 1.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            required = true,
+            allow_hyphen_values = true
+        )]
+        weights: Vec<f32>,
+        /// Kernel standard deviation in unit-cube units.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
+        sigma: f32,
+        /// Output MERL file (.binary).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Describe an archive: header, sizes, keys, validation.
     Inspect {
         /// Archive file (.otb).
@@ -253,6 +317,24 @@ fn load_and_bake(
         );
     }
     Ok(m)
+}
+
+/// One weight per input, or an error naming the inputs.
+fn check_weight_count(m: &Manifest, manifest: &Path, weights: &[f32]) -> Result<()> {
+    if weights.len() != m.inputs.len() {
+        bail!(
+            "--weights has {} values but {} has {} inputs ({}): give one weight per input",
+            weights.len(),
+            manifest.display(),
+            m.inputs.len(),
+            m.inputs
+                .iter()
+                .map(|i| i.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    Ok(())
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -419,6 +501,58 @@ fn run(cli: Cli) -> Result<()> {
             }
             let bytes = otbake::points::points_npy(&m, &input)?;
             otbake::fsio::write_atomic(&output, &bytes)?;
+        }
+        Command::BrdfSlice {
+            manifest,
+            weights,
+            theta_i,
+            size,
+            sigma,
+            exposure,
+            output,
+        } => {
+            if !(0.0..90.0).contains(&theta_i) || !(1..=8192).contains(&size) {
+                bail!("--theta-i must be in [0, 90) degrees and --size 1 to 8192");
+            }
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            let archives = Archives::load(&m)?;
+            let maps = archives.maps()?;
+            check_weight_count(&m, &manifest, &weights)?;
+            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let img =
+                otbake::brdf::render::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
+            write_image(&output, &img)?;
+        }
+        Command::BrdfSpheres {
+            manifest,
+            steps,
+            size,
+            sigma,
+            output,
+        } => {
+            if !(2..=4096).contains(&size) {
+                bail!("--size {size}: use 2 to 4096 pixels");
+            }
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            let archives = Archives::load(&m)?;
+            let maps = archives.maps()?;
+            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let img = otbake::brdf::render::spheres(&b, steps, size, &Default::default())
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            write_image(&output, &img)?;
+        }
+        Command::BrdfExport {
+            manifest,
+            weights,
+            sigma,
+            output,
+        } => {
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            let archives = Archives::load(&m)?;
+            let maps = archives.maps()?;
+            check_weight_count(&m, &manifest, &weights)?;
+            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            otbake::brdf::render::export_merl(&b, &weights)?.write(&output)?;
         }
         Command::Inspect { archive } => {
             let bytes = std::fs::read(&archive)

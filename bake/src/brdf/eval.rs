@@ -78,7 +78,8 @@ impl<'a, 'm> BrdfBlend<'a, 'm> {
         })
     }
 
-    /// `f`, `f_Y` and `ρ_w` at `(θi, θo, φd)` (radians; `φd` in `[0, π]`).
+    /// `f`, `f_Y` and `ρ_w` at `(θi, θo, φd)` (radians; `φd` in `[0, π]`): the point query divided
+    /// by [`Self::inside_fraction`].
     pub fn eval_angles(
         &self,
         weights: &[f32],
@@ -86,14 +87,34 @@ impl<'a, 'm> BrdfBlend<'a, 'm> {
         theta_o: f64,
         phi_d: f64,
     ) -> Result<BrdfValue, Error> {
-        let v = self
-            .blend
-            .point(weights, &to_unit(theta_i, theta_o, phi_d), self.kernel)?;
+        let u = to_unit(theta_i, theta_o, phi_d);
+        let v = self.blend.point(weights, &u, self.kernel)?;
+        let inside = self.inside_fraction(&u);
         Ok(BrdfValue {
-            rgb: v.color,
-            luminance: v.mass,
-            density: v.density,
+            rgb: v.color.map(|c| c / inside),
+            luminance: v.mass / inside,
+            density: v.density / inside,
         })
+    }
+
+    /// Boundary correction: the fraction of the kernel centred at `u` that lies inside the cube
+    /// (product over axes of the 1D Gaussian mass inside `[0, 1]`, each clipped to ±3σ as the
+    /// runtime's kernel is). The density has no mass outside the cube, so a plain kernel estimate
+    /// falls to about half at a face (θ = 0, θ = 90°, φd = 0 or π) and a quarter at an edge;
+    /// dividing by this fraction removes that bias (the usual renormalization of kernel estimates
+    /// on bounded domains; approximate, since the runtime truncates to a ball, not a box).
+    pub fn inside_fraction(&self, u: &[f32; 3]) -> f32 {
+        use crate::sample::normal::cdf;
+        let s = f64::from(self.kernel.sigma);
+        let full = cdf(3.0) - cdf(-3.0);
+        u.iter()
+            .map(|&q| {
+                let q = f64::from(q);
+                let hi = ((1.0 - q) / s).min(3.0);
+                let lo = (-q / s).max(-3.0);
+                ((cdf(hi) - cdf(lo)) / full).max(1e-3) as f32
+            })
+            .product()
     }
 
     /// `f(wi, wo)` in linear RGB for unit directions in the local frame; 0 below the horizon.
