@@ -5,7 +5,9 @@
 #![no_main]
 
 use core::panic::PanicInfo;
-use otbake_runtime::{Blend, Error, Kernel, Map, Proxy, SplatTarget};
+use otbake_runtime::{
+    Blend, Error, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget,
+};
 
 /// Archive bytes the optimizer cannot see through (`black_box`), so every query stays linked.
 #[repr(C, align(16))]
@@ -54,5 +56,28 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
             color: Some(&mut color),
         },
     )?;
-    Ok(p.density + r.mass + s.position[0] + density[5] + color[7])
+    // A prepared blend in caller buffers (statics here: sized for small archives), and region queries.
+    let mut positions = [0f32; 256];
+    let mut colors = [0f32; 384];
+    let mut node_boxes = [0f32; 1024];
+    let mut node_colors = [0f32; 768];
+    let prep = blend.prepare(
+        &w,
+        PreparedBuffers {
+            positions: &mut positions,
+            colors: &mut colors,
+            node_boxes: &mut node_boxes,
+            node_colors: &mut node_colors,
+        },
+    )?;
+    let mut grid = [PointValue::default(); 16];
+    prep.point_grid(kernel, Region::full([4, 4, 1, 1]), &mut grid)?;
+    prep.splat_region(
+        kernel,
+        Region::rows([4, 4, 1, 1], 1, 2),
+        &mut density[..8],
+        Some(&mut color[..24]),
+    )?;
+    let q = prep.point(&[0.5, 0.5], kernel)?;
+    Ok(p.density + r.mass + s.position[0] + density[5] + color[7] + grid[3].density + q.mass)
 }

@@ -216,16 +216,84 @@ impl<'a, 'm> Blend<'a, 'm> {
         out
     }
 
+    /// This blend's queries for one (checked) weight vector.
+    pub(crate) fn weighted<'s>(&'s self, weights: &'s [f32]) -> Weighted<'s, 'a, 'm> {
+        Weighted {
+            blend: self,
+            weights,
+        }
+    }
+
     /// The `index`-th point of the blend: a sample of the barycenter distribution (each point carries
     /// mass 1/n), for importance sampling.
     pub fn sample(&self, weights: &[f32], index: u32) -> Result<Sample, Error> {
         self.check_weights(weights)?;
-        if index >= self.n {
-            return Err(Error::IndexOutOfRange { index, n: self.n });
-        }
-        Ok(Sample {
-            position: self.position(weights, index as usize),
-            color: self.color(weights, index as usize),
-        })
+        sample(&self.weighted(weights), index)
     }
+}
+
+/// What every query reads: blended points, colors, node boxes and node color sums. Queries are
+/// written once, generic over their source, so a [`Blend`] (mixing on the fly) and a
+/// [`crate::Prepared`] (reading mixed buffers) run the same operations and return the same bits.
+pub(crate) trait Source {
+    fn dim(&self) -> usize;
+    fn n(&self) -> u32;
+    fn depth(&self) -> u32;
+    fn has_color(&self) -> bool;
+    fn mean_mass(&self) -> f32;
+    fn position(&self, i: usize) -> [f32; MAX_DIM];
+    fn color(&self, i: usize) -> [f32; 3];
+    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]);
+    fn node_color(&self, node: Node) -> [f32; 3];
+}
+
+/// A blend and one weight vector (checked by the caller).
+pub(crate) struct Weighted<'s, 'a, 'm> {
+    blend: &'s Blend<'a, 'm>,
+    weights: &'s [f32],
+}
+
+impl Source for Weighted<'_, '_, '_> {
+    fn dim(&self) -> usize {
+        self.blend.dim
+    }
+    fn n(&self) -> u32 {
+        self.blend.n
+    }
+    fn depth(&self) -> u32 {
+        self.blend.depth
+    }
+    fn has_color(&self) -> bool {
+        self.blend.has_color
+    }
+    fn mean_mass(&self) -> f32 {
+        self.blend.mean_mass(self.weights)
+    }
+    #[inline]
+    fn position(&self, i: usize) -> [f32; MAX_DIM] {
+        self.blend.position(self.weights, i)
+    }
+    #[inline]
+    fn color(&self, i: usize) -> [f32; 3] {
+        self.blend.color(self.weights, i)
+    }
+    #[inline]
+    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
+        self.blend.node_box(self.weights, node)
+    }
+    #[inline]
+    fn node_color(&self, node: Node) -> [f32; 3] {
+        self.blend.node_color(self.weights, node)
+    }
+}
+
+/// The `index`-th blended point.
+pub(crate) fn sample(s: &impl Source, index: u32) -> Result<Sample, Error> {
+    if index >= s.n() {
+        return Err(Error::IndexOutOfRange { index, n: s.n() });
+    }
+    Ok(Sample {
+        position: s.position(index as usize),
+        color: s.color(index as usize),
+    })
 }

@@ -57,6 +57,11 @@ pub enum Error {
         /// Values it has.
         found: usize,
     },
+    /// A grid region is empty-gridded (a resolution of 0) or reaches past its grid on `axis`.
+    BadRegion {
+        /// The axis.
+        axis: usize,
+    },
     /// `sample` index past the end.
     IndexOutOfRange {
         /// Index asked for.
@@ -99,6 +104,10 @@ impl fmt::Display for Error {
             Self::BufferSize { expected, found } => write!(
                 f,
                 "splat buffer holds {found} values but the resolution needs {expected} (resolutions must be >= 1)"
+            ),
+            Self::BadRegion { axis } => write!(
+                f,
+                "grid region leaves the grid on axis {axis}: resolutions must be >= 1 and start + size <= res"
             ),
             Self::IndexOutOfRange { index, n } => write!(f, "sample index {index} is out of range: the blend has {n} points"),
         }

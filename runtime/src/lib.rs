@@ -21,7 +21,7 @@
 //! #     let map = |pos: &[f32]| {
 //! #         let mut b = vec![0.0; tree::node_count(d) as usize * 4];
 //! #         tree::fill_node_boxes(pos, 2, d, &mut b);
-//! #         write::encode_map(&MapData { dim: 2, n: 2, depth: d, proxy_key: [1; 32], key: [2; 32], name: "m",
+//! #         write::encode_map(&MapData { dim: 2, n: 2, depth: d, proxy_key: [1; 32], key: [2; 32],
 //! #             composite: 0, mean_mass: 0.5, positions: pos, colors: &[], node_boxes: &b, node_colors: &[],
 //! #             solver_report: "", transport_cost: 0.0 }).unwrap()
 //! #     };
@@ -48,8 +48,10 @@
 mod archive;
 mod blend;
 mod error;
+mod grid;
 mod kernel;
 mod point;
+mod prepared;
 mod range;
 mod splat;
 mod stack;
@@ -57,8 +59,10 @@ mod stack;
 pub use archive::{Map, Proxy};
 pub use blend::{Blend, Sample};
 pub use error::Error;
+pub use grid::Region;
 pub use kernel::Kernel;
 pub use otbake_formats::{Composite, MAX_DIM};
 pub use point::PointValue;
+pub use prepared::{Prepared, PreparedBuffers, PreparedSizes};
 pub use range::RangeValue;
 pub use splat::SplatTarget;

@@ -1,10 +1,11 @@
 //! Point queries: the blended density and color at a point, reconstructed with a truncated
 //! Gaussian kernel (paper §4.2, §5.2).
 
-use crate::blend::Blend;
+use crate::blend::{Blend, Source};
 use crate::error::Error;
-use crate::kernel::Kernel;
+use crate::kernel::{Kernel, Prepared};
 use crate::stack::Stack;
+use crate::MAX_DIM;
 use otbake_formats::tree::Node;
 
 /// What a point query returns.
@@ -38,51 +39,56 @@ impl Blend<'_, '_> {
         self.check_weights(weights)?;
         let q = self.point_arg(p)?;
         let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        let d = self.dim;
-        let q = &q[..d];
-        let mut sum = 0.0f32;
-        let mut csum = [0.0f32; 3];
-        let mut stack = Stack::new(Node::root(self.n));
-        while let Some(node) = stack.pop() {
-            if node.count == 0 {
-                continue;
-            }
-            let (lo, hi) = self.node_box(weights, node);
-            if box_distance2(q, &lo[..d], &hi[..d]) > kp.radius2 {
-                continue;
-            }
-            if node.level >= self.depth {
-                for i in node.range() {
-                    let y = self.position(weights, i);
-                    let mut r2 = 0.0;
-                    for k in 0..d {
-                        let t = y[k] - q[k];
-                        r2 += t * t;
-                    }
-                    if r2 <= kp.radius2 {
-                        let w = kp.weight(r2);
-                        sum += w;
-                        if self.has_color {
-                            let c = self.color(weights, i);
-                            for (s, c) in csum.iter_mut().zip(c) {
-                                *s += w * c;
-                            }
+        Ok(point(&self.weighted(weights), &q, kp))
+    }
+}
+
+/// A point query at `q` (finite, `dim` coordinates used) with a prepared kernel.
+pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointValue {
+    let d = s.dim();
+    let q = &q[..d];
+    let mut sum = 0.0f32;
+    let mut csum = [0.0f32; 3];
+    let mut stack = Stack::new(Node::root(s.n()));
+    while let Some(node) = stack.pop() {
+        if node.count == 0 {
+            continue;
+        }
+        let (lo, hi) = s.node_box(node);
+        if box_distance2(q, &lo[..d], &hi[..d]) > kp.radius2 {
+            continue;
+        }
+        if node.level >= s.depth() {
+            for i in node.range() {
+                let y = s.position(i);
+                let mut r2 = 0.0;
+                for k in 0..d {
+                    let t = y[k] - q[k];
+                    r2 += t * t;
+                }
+                if r2 <= kp.radius2 {
+                    let w = kp.weight(r2);
+                    sum += w;
+                    if s.has_color() {
+                        let c = s.color(i);
+                        for (a, c) in csum.iter_mut().zip(c) {
+                            *a += w * c;
                         }
                     }
                 }
-            } else {
-                let (l, r) = node.children();
-                stack.push(r);
-                stack.push(l);
             }
+        } else {
+            let (l, r) = node.children();
+            stack.push(r);
+            stack.push(l);
         }
-        let scale = kp.norm / self.n as f32;
-        let mean_mass = self.mean_mass(weights);
-        let density = sum * scale;
-        Ok(PointValue {
-            density,
-            mass: density * mean_mass,
-            color: csum.map(|c| c * scale * mean_mass),
-        })
+    }
+    let scale = kp.norm / s.n() as f32;
+    let mean_mass = s.mean_mass();
+    let density = sum * scale;
+    PointValue {
+        density,
+        mass: density * mean_mass,
+        color: csum.map(|c| c * scale * mean_mass),
     }
 }

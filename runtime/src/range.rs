@@ -1,8 +1,9 @@
 //! Range queries: how much of the blend lies in a box, for level of detail (paper §4.2, §6.2).
 
-use crate::blend::Blend;
+use crate::blend::{Blend, Source};
 use crate::error::Error;
 use crate::stack::Stack;
+use crate::MAX_DIM;
 use otbake_formats::tree::Node;
 
 /// What a range query returns: integrals over the query box.
@@ -25,49 +26,54 @@ impl Blend<'_, '_> {
         self.check_weights(weights)?;
         let qlo = self.point_arg(lo)?;
         let qhi = self.point_arg(hi)?;
-        let d = self.dim;
-        let mut count = 0u32;
-        let mut csum = [0.0f32; 3];
-        let mut stack = Stack::new(Node::root(self.n));
-        while let Some(node) = stack.pop() {
-            if node.count == 0 {
-                continue;
+        Ok(range(&self.weighted(weights), &qlo, &qhi))
+    }
+}
+
+/// A range query over the closed box [`qlo`, `qhi`] (finite, `dim` coordinates used).
+pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM]) -> RangeValue {
+    let d = s.dim();
+    let mut count = 0u32;
+    let mut csum = [0.0f32; 3];
+    let mut stack = Stack::new(Node::root(s.n()));
+    while let Some(node) = stack.pop() {
+        if node.count == 0 {
+            continue;
+        }
+        let (blo, bhi) = s.node_box(node);
+        if (0..d).any(|k| blo[k] > qhi[k] || bhi[k] < qlo[k]) {
+            continue;
+        }
+        if (0..d).all(|k| blo[k] >= qlo[k] && bhi[k] <= qhi[k]) {
+            count += node.count;
+            let c = s.node_color(node);
+            for (a, c) in csum.iter_mut().zip(c) {
+                *a += c;
             }
-            let (blo, bhi) = self.node_box(weights, node);
-            if (0..d).any(|k| blo[k] > qhi[k] || bhi[k] < qlo[k]) {
-                continue;
-            }
-            if (0..d).all(|k| blo[k] >= qlo[k] && bhi[k] <= qhi[k]) {
-                count += node.count;
-                let c = self.node_color(weights, node);
-                for (s, c) in csum.iter_mut().zip(c) {
-                    *s += c;
-                }
-                continue;
-            }
-            if node.level >= self.depth {
-                for i in node.range() {
-                    let y = self.position(weights, i);
-                    if (0..d).all(|k| y[k] >= qlo[k] && y[k] <= qhi[k]) {
-                        count += 1;
-                        let c = self.color(weights, i);
-                        for (s, c) in csum.iter_mut().zip(c) {
-                            *s += c;
-                        }
+            continue;
+        }
+        if node.level >= s.depth() {
+            for i in node.range() {
+                let y = s.position(i);
+                if (0..d).all(|k| y[k] >= qlo[k] && y[k] <= qhi[k]) {
+                    count += 1;
+                    let c = s.color(i);
+                    for (a, c) in csum.iter_mut().zip(c) {
+                        *a += c;
                     }
                 }
-            } else {
-                let (l, r) = node.children();
-                stack.push(r);
-                stack.push(l);
             }
+        } else {
+            let (l, r) = node.children();
+            stack.push(r);
+            stack.push(l);
         }
-        let mean_mass = self.mean_mass(weights);
-        let scale = mean_mass / self.n as f32;
-        Ok(RangeValue {
-            count,
-            mass: count as f32 * scale,
-            color: csum.map(|c| c * scale),
-        })
+    }
+    let mean_mass = s.mean_mass();
+    let scale = mean_mass / s.n() as f32;
+    RangeValue {
+        count,
+        mass: count as f32 * scale,
+        color: csum.map(|c| c * scale),
     }
 }

@@ -1,9 +1,9 @@
 //! Splatting: the whole blend reconstructed on a regular grid in one pass over the points, the fast
 //! way to make an image or volume of a blend (paper §5.2, Fig. 6).
 
-use crate::blend::Blend;
+use crate::blend::{Blend, Source};
 use crate::error::Error;
-use crate::kernel::Kernel;
+use crate::kernel::{Kernel, Prepared};
 use crate::MAX_DIM;
 
 /// A caller-owned grid over [0,1]^d to splat into. Cell `idx` has its center at `(idx + 0.5) / res`
@@ -27,116 +27,140 @@ impl Blend<'_, '_> {
         target: SplatTarget<'_>,
     ) -> Result<(), Error> {
         self.check_weights(weights)?;
-        let d = self.dim;
-        let kp = kernel.prepare(d).ok_or(Error::BadSigma)?;
+        let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
         let SplatTarget {
             res,
             density,
-            mut color,
+            color,
         } = target;
-        let mut cells: usize = 1;
-        for &r in &res[..d] {
-            cells = cells
-                .checked_mul(r as usize)
-                .filter(|_| r > 0)
-                .ok_or(Error::BufferSize {
-                    expected: 0,
-                    found: density.len(),
-                })?;
-        }
-        if density.len() != cells {
-            return Err(Error::BufferSize {
-                expected: cells,
-                found: density.len(),
-            });
-        }
-        if let Some(c) = &color {
-            if c.len() != cells * 3 {
-                return Err(Error::BufferSize {
-                    expected: cells * 3,
-                    found: c.len(),
-                });
-            }
-        }
-        let scale = kp.norm / self.n as f32;
-        let mean_mass = self.mean_mass(weights);
-        let radius = kernel.sigma * crate::kernel::TRUNCATION;
-        let mut stride = [0usize; MAX_DIM];
-        let mut s = 1;
-        for k in 0..d {
-            stride[k] = s;
-            s *= res[k] as usize;
-        }
-        for i in 0..self.n as usize {
-            let y = self.position(weights, i);
-            let c = self.color(weights, i);
-            // Cells whose centers can lie within the radius, clamped to the grid.
-            let mut first = [0usize; MAX_DIM];
-            let mut last = [0usize; MAX_DIM];
-            let mut empty = false;
-            for k in 0..d {
-                let r = res[k] as f32;
-                // Clamped before rounding so the integer conversions stay in range.
-                let a = ceil(((y[k] - radius) * r - 0.5).clamp(-1.0, r));
-                let b = floor(((y[k] + radius) * r - 0.5).clamp(-1.0, r)).min(res[k] as i64 - 1);
-                let a = a.max(0);
-                if a > b {
-                    empty = true;
-                    break;
-                }
-                first[k] = a as usize;
-                last[k] = b as usize;
-            }
-            if empty {
-                continue;
-            }
-            // Odometer over the cell box, axis 0 fastest.
-            let mut idx = first;
-            loop {
-                let mut r2 = 0.0f32;
-                let mut cell = 0usize;
-                for k in 0..d {
-                    let center = (idx[k] as f32 + 0.5) / res[k] as f32;
-                    let t = y[k] - center;
-                    r2 += t * t;
-                    cell += idx[k] * stride[k];
-                }
-                if r2 <= kp.radius2 {
-                    let w = kp.weight(r2) * scale;
-                    if let Some(v) = density.get_mut(cell) {
-                        *v += w;
-                    }
-                    if let Some(col) = color.as_deref_mut() {
-                        if let Some(px) = col.get_mut(cell * 3..cell * 3 + 3) {
-                            for (p, c) in px.iter_mut().zip(c) {
-                                *p += w * c * mean_mass;
-                            }
-                        }
-                    }
-                }
-                let mut k = 0;
-                loop {
-                    if k == d {
-                        break;
-                    }
-                    if idx[k] < last[k] {
-                        idx[k] += 1;
-                        break;
-                    }
-                    idx[k] = first[k];
-                    k += 1;
-                }
-                if k == d {
-                    break;
-                }
-            }
-        }
+        check_target(self.dim, &res, density, color.as_deref())?;
+        splat(&self.weighted(weights), kernel, kp, &res, density, color);
         Ok(())
     }
 }
 
+/// Checks that `density` holds one value per cell of a `res` grid (every resolution >= 1) and
+/// `color` three; returns the number of cells.
+pub(crate) fn check_target(
+    d: usize,
+    res: &[u32; MAX_DIM],
+    density: &[f32],
+    color: Option<&[f32]>,
+) -> Result<usize, Error> {
+    let mut cells: usize = 1;
+    for &r in &res[..d] {
+        cells = cells
+            .checked_mul(r as usize)
+            .filter(|_| r > 0)
+            .ok_or(Error::BufferSize {
+                expected: 0,
+                found: density.len(),
+            })?;
+    }
+    if density.len() != cells {
+        return Err(Error::BufferSize {
+            expected: cells,
+            found: density.len(),
+        });
+    }
+    if let Some(c) = color {
+        if c.len() != cells * 3 {
+            return Err(Error::BufferSize {
+                expected: cells * 3,
+                found: c.len(),
+            });
+        }
+    }
+    Ok(cells)
+}
+
+/// Splats every point of `s` into a checked target (the reference the region splat must equal).
+pub(crate) fn splat(
+    s: &impl Source,
+    kernel: Kernel,
+    kp: Prepared,
+    res: &[u32; MAX_DIM],
+    density: &mut [f32],
+    mut color: Option<&mut [f32]>,
+) {
+    let d = s.dim();
+    let scale = kp.norm / s.n() as f32;
+    let mean_mass = s.mean_mass();
+    let radius = kernel.sigma * crate::kernel::TRUNCATION;
+    let mut stride = [0usize; MAX_DIM];
+    let mut step = 1;
+    for k in 0..d {
+        stride[k] = step;
+        step *= res[k] as usize;
+    }
+    for i in 0..s.n() as usize {
+        let y = s.position(i);
+        let c = s.color(i);
+        // Cells whose centers can lie within the radius, clamped to the grid.
+        let mut first = [0usize; MAX_DIM];
+        let mut last = [0usize; MAX_DIM];
+        let mut empty = false;
+        for k in 0..d {
+            let r = res[k] as f32;
+            // Clamped before rounding so the integer conversions stay in range.
+            let a = ceil(((y[k] - radius) * r - 0.5).clamp(-1.0, r));
+            let b = floor(((y[k] + radius) * r - 0.5).clamp(-1.0, r)).min(res[k] as i64 - 1);
+            let a = a.max(0);
+            if a > b {
+                empty = true;
+                break;
+            }
+            first[k] = a as usize;
+            last[k] = b as usize;
+        }
+        if empty {
+            continue;
+        }
+        // Odometer over the cell box, axis 0 fastest.
+        let mut idx = first;
+        loop {
+            let mut r2 = 0.0f32;
+            let mut cell = 0usize;
+            for k in 0..d {
+                let center = (idx[k] as f32 + 0.5) / res[k] as f32;
+                let t = y[k] - center;
+                r2 += t * t;
+                cell += idx[k] * stride[k];
+            }
+            if r2 <= kp.radius2 {
+                let w = kp.weight(r2) * scale;
+                if let Some(v) = density.get_mut(cell) {
+                    *v += w;
+                }
+                if let Some(col) = color.as_deref_mut() {
+                    if let Some(px) = col.get_mut(cell * 3..cell * 3 + 3) {
+                        for (p, c) in px.iter_mut().zip(c) {
+                            *p += w * c * mean_mass;
+                        }
+                    }
+                }
+            }
+            let mut k = 0;
+            loop {
+                if k == d {
+                    break;
+                }
+                if idx[k] < last[k] {
+                    idx[k] += 1;
+                    break;
+                }
+                idx[k] = first[k];
+                k += 1;
+            }
+            if k == d {
+                break;
+            }
+        }
+    }
+}
+
 /// `floor` for values in a small range (`core` has no float rounding without `std`).
-fn floor(v: f32) -> i64 {
+pub(crate) fn floor(v: f32) -> i64 {
     let t = v as i64;
     if (t as f32) > v {
         t - 1
@@ -146,7 +170,7 @@ fn floor(v: f32) -> i64 {
 }
 
 /// `ceil` for values in a small range.
-fn ceil(v: f32) -> i64 {
+pub(crate) fn ceil(v: f32) -> i64 {
     let t = v as i64;
     if (t as f32) < v {
         t + 1

@@ -3,7 +3,7 @@
 
 mod common;
 
-use otbake_runtime::{Blend, Kernel, Map, Proxy, SplatTarget};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -33,6 +33,19 @@ fn queries_do_not_allocate() {
     let f = common::fixture(7, 500, 2, 4, 3, [3; 32]);
     let mut density = vec![0.0f32; 32 * 32];
     let mut color = vec![0.0f32; 32 * 32 * 3];
+    let mut grid = vec![PointValue::default(); 32 * 8];
+    let mut buffers: [Vec<f32>; 4] = Default::default();
+    {
+        let proxy = Proxy::open(&f.proxy).unwrap();
+        let maps: Vec<Map<'_>> = f.maps.iter().map(|m| Map::open(m).unwrap()).collect();
+        let s = Blend::new(proxy, &maps).unwrap().prepared_sizes();
+        for (b, len) in buffers
+            .iter_mut()
+            .zip([s.positions, s.colors, s.node_boxes, s.node_colors])
+        {
+            b.resize(len, 0.0);
+        }
+    }
     let before = ALLOCATIONS.load(Ordering::SeqCst);
 
     let proxy = Proxy::open(&f.proxy).unwrap();
@@ -68,6 +81,44 @@ fn queries_do_not_allocate() {
             },
         )
         .unwrap();
+
+    // Prepared blends and region queries live in the caller's buffers.
+    let [p, c, b, nc] = &mut buffers;
+    let prep = blend
+        .prepare(
+            &w,
+            PreparedBuffers {
+                positions: p,
+                colors: c,
+                node_boxes: b,
+                node_colors: nc,
+            },
+        )
+        .unwrap();
+    let k = Kernel { sigma: 0.02 };
+    acc += prep.point(&[0.5, 0.5], k).unwrap().density;
+    acc += prep.range(&[0.2, 0.2], &[0.7, 0.7]).unwrap().mass;
+    acc += prep.sample(3).unwrap().position[1];
+    let res = [32, 32, 1, 1];
+    prep.point_grid(k, Region::rows(res, 8, 8), &mut grid)
+        .unwrap();
+    prep.splat_region(
+        k,
+        Region::rows(res, 0, 8),
+        &mut density[..256],
+        Some(&mut color[..768]),
+    )
+    .unwrap();
+    prep.splat(
+        k,
+        SplatTarget {
+            res,
+            density: &mut density,
+            color: None,
+        },
+    )
+    .unwrap();
+    acc += grid.iter().map(|v| v.density).sum::<f32>();
 
     let after = ALLOCATIONS.load(Ordering::SeqCst);
     assert_eq!(

@@ -1,0 +1,301 @@
+//! A blend prepared for one weight vector: blended points, colors, node boxes and node color sums
+//! mixed once into caller-owned buffers, so queries read plain `f32` arrays instead of mixing k maps
+//! at every node and point.
+//!
+//! Every buffer entry is computed by the same `Σ w_k v_k` (same order of operations) as [`Blend`]'s
+//! queries compute on the fly, so a [`Prepared`] answers every query with exactly the bits the
+//! [`Blend`] returns for the same weights, and its boxes still contain its points.
+
+use crate::blend::{sample, Blend, Sample, Source};
+use crate::error::Error;
+use crate::kernel::Kernel;
+use crate::point::PointValue;
+use crate::range::RangeValue;
+use crate::splat::{check_target, SplatTarget};
+use crate::MAX_DIM;
+use otbake_formats::rkyv::rend::f32_le;
+use otbake_formats::tree::{node_count, Node};
+
+/// How many `f32` each buffer of [`PreparedBuffers`] needs (see [`Blend::prepared_sizes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PreparedSizes {
+    /// `n · dim` blended coordinates.
+    pub positions: usize,
+    /// `n · 3` blended color ratios, or 0 when the blend has no color.
+    pub colors: usize,
+    /// `nodes · 2 · dim` blended node boxes.
+    pub node_boxes: usize,
+    /// `nodes · 3` blended node color sums, or 0 when the blend has no color.
+    pub node_colors: usize,
+}
+
+impl PreparedSizes {
+    /// Total `f32` over all four buffers.
+    pub fn total(&self) -> usize {
+        self.positions + self.colors + self.node_boxes + self.node_colors
+    }
+}
+
+/// Caller-owned buffers a [`Prepared`] blend lives in; each at least as long as
+/// [`Blend::prepared_sizes`] says (longer buffers are fine: only the prefix is used), so one set of
+/// buffers can be reused for every weight vector.
+pub struct PreparedBuffers<'b> {
+    /// Blended coordinates.
+    pub positions: &'b mut [f32],
+    /// Blended color ratios (may be empty when the blend has no color).
+    pub colors: &'b mut [f32],
+    /// Blended node boxes.
+    pub node_boxes: &'b mut [f32],
+    /// Blended node color sums (may be empty when the blend has no color).
+    pub node_colors: &'b mut [f32],
+}
+
+/// A blend for one weight vector, mixed into caller buffers by [`Blend::prepare`]. Answers the same
+/// queries as [`Blend`] without weights, with the same results bit for bit, and the region queries
+/// [`Prepared::point_grid`] and [`Prepared::splat_region`]. `Copy` and `Sync`: share it between
+/// threads that render disjoint regions.
+#[derive(Clone, Copy, Debug)]
+pub struct Prepared<'b> {
+    pub(crate) dim: usize,
+    pub(crate) n: u32,
+    pub(crate) depth: u32,
+    pub(crate) has_color: bool,
+    pub(crate) mean_mass: f32,
+    pub(crate) positions: &'b [f32],
+    pub(crate) colors: &'b [f32],
+    pub(crate) node_boxes: &'b [f32],
+    pub(crate) node_colors: &'b [f32],
+}
+
+/// `out[j] = Σ_k w_k src_k[j]`, in the order of `blend::mix` (map by map, starting from +0), so
+/// every entry has the bits `mix` computes for it; map-major so the loops stream and vectorize.
+fn mix_buffer<'x>(out: &mut [f32], weights: &[f32], maps: impl Iterator<Item = &'x [f32_le]>) {
+    out.fill(0.0);
+    for (&w, src) in weights.iter().zip(maps) {
+        if src.len() >= out.len() {
+            for (o, v) in out.iter_mut().zip(src) {
+                *o += w * v.to_native();
+            }
+        } else {
+            // Unreachable for validated archives; mirrors `at`'s zero past the end.
+            for (j, o) in out.iter_mut().enumerate() {
+                *o += w * src.get(j).map_or(0.0, |v| v.to_native());
+            }
+        }
+    }
+}
+
+impl<'a> Blend<'a, '_> {
+    /// Buffer sizes [`Blend::prepare`] needs.
+    pub fn prepared_sizes(&self) -> PreparedSizes {
+        let n = self.n as usize;
+        let nodes = node_count(self.depth) as usize;
+        let c = if self.has_color { 3 } else { 0 };
+        PreparedSizes {
+            positions: n * self.dim,
+            colors: n * c,
+            node_boxes: nodes * 2 * self.dim,
+            node_colors: nodes * c,
+        }
+    }
+
+    /// Mixes the blend for `weights` into `buffers` once, for as many queries as the caller likes.
+    /// Costs one pass over every map (about `k · (dim + 3) · n` multiply-adds); worth it from a few
+    /// hundred point queries on, or for any splat or region query.
+    pub fn prepare<'b>(
+        &self,
+        weights: &[f32],
+        buffers: PreparedBuffers<'b>,
+    ) -> Result<Prepared<'b>, Error> {
+        self.check_weights(weights)?;
+        let sizes = self.prepared_sizes();
+        let PreparedBuffers {
+            positions,
+            colors,
+            node_boxes,
+            node_colors,
+        } = buffers;
+        let take = |b: &'b mut [f32], len: usize| -> Result<&'b mut [f32], Error> {
+            let found = b.len();
+            b.get_mut(..len).ok_or(Error::BufferSize {
+                expected: len,
+                found,
+            })
+        };
+        let positions = take(positions, sizes.positions)?;
+        let colors = take(colors, sizes.colors)?;
+        let node_boxes = take(node_boxes, sizes.node_boxes)?;
+        let node_colors = take(node_colors, sizes.node_colors)?;
+        let maps = self.maps;
+        mix_buffer(
+            positions,
+            weights,
+            maps.iter().map(|m| &m.archived().positions[..]),
+        );
+        mix_buffer(
+            node_boxes,
+            weights,
+            maps.iter().map(|m| &m.archived().node_boxes[..]),
+        );
+        if self.has_color {
+            mix_buffer(
+                colors,
+                weights,
+                maps.iter().map(|m| &m.archived().colors[..]),
+            );
+            mix_buffer(
+                node_colors,
+                weights,
+                maps.iter().map(|m| &m.archived().node_colors[..]),
+            );
+        }
+        Ok(Prepared {
+            dim: self.dim,
+            n: self.n,
+            depth: self.depth,
+            has_color: self.has_color,
+            mean_mass: self.mean_mass(weights),
+            positions,
+            colors,
+            node_boxes,
+            node_colors,
+        })
+    }
+}
+
+impl Prepared<'_> {
+    /// Dimension.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// Number of points.
+    pub fn n(&self) -> u32 {
+        self.n
+    }
+
+    /// Whether the blend carries color (otherwise colors are zeros).
+    pub fn has_color(&self) -> bool {
+        self.has_color
+    }
+
+    /// Blended mean mass `Σ w_k mean_mass_k`: a point value's `mass` is `density × mean_mass()`.
+    pub fn mean_mass(&self) -> f32 {
+        self.mean_mass
+    }
+
+    /// Blended coordinates, `n · dim`, point-major in tree order.
+    pub fn positions(&self) -> &[f32] {
+        self.positions
+    }
+
+    /// Blended color ratios, `n · 3` (empty without color).
+    pub fn colors(&self) -> &[f32] {
+        self.colors
+    }
+
+    /// Checks a query point and copies it into a fixed array.
+    pub(crate) fn point_arg(&self, p: &[f32]) -> Result<[f32; MAX_DIM], Error> {
+        if p.len() != self.dim {
+            return Err(Error::PointDim {
+                expected: self.dim,
+                found: p.len(),
+            });
+        }
+        let mut out = [0.0; MAX_DIM];
+        for (o, &v) in out.iter_mut().zip(p) {
+            if !v.is_finite() {
+                return Err(Error::BadCoordinate);
+            }
+            *o = v;
+        }
+        Ok(out)
+    }
+
+    /// [`Blend::point`] for the prepared weights (same result, bit for bit).
+    pub fn point(&self, p: &[f32], kernel: Kernel) -> Result<PointValue, Error> {
+        let q = self.point_arg(p)?;
+        let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
+        Ok(crate::point::point(self, &q, kp))
+    }
+
+    /// [`Blend::range`] for the prepared weights (same result, bit for bit).
+    pub fn range(&self, lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
+        let qlo = self.point_arg(lo)?;
+        let qhi = self.point_arg(hi)?;
+        Ok(crate::range::range(self, &qlo, &qhi))
+    }
+
+    /// [`Blend::sample`] for the prepared weights (same result, bit for bit).
+    pub fn sample(&self, index: u32) -> Result<Sample, Error> {
+        sample(self, index)
+    }
+
+    /// [`Blend::splat`] for the prepared weights (same result, bit for bit): the whole grid as one
+    /// [`Prepared::splat_region`].
+    pub fn splat(&self, kernel: Kernel, target: SplatTarget<'_>) -> Result<(), Error> {
+        kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
+        let SplatTarget {
+            res,
+            density,
+            color,
+        } = target;
+        // The errors of `Blend::splat`.
+        check_target(self.dim, &res, density, color.as_deref())?;
+        self.splat_region(kernel, crate::grid::Region::full(res), density, color)
+    }
+}
+
+impl Source for Prepared<'_> {
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn n(&self) -> u32 {
+        self.n
+    }
+    fn depth(&self) -> u32 {
+        self.depth
+    }
+    fn has_color(&self) -> bool {
+        self.has_color
+    }
+    fn mean_mass(&self) -> f32 {
+        self.mean_mass
+    }
+    #[inline]
+    fn position(&self, i: usize) -> [f32; MAX_DIM] {
+        let d = self.dim;
+        let mut out = [0.0; MAX_DIM];
+        if let Some(s) = self.positions.get(i * d..i * d + d) {
+            out[..d].copy_from_slice(s);
+        }
+        out
+    }
+    #[inline]
+    fn color(&self, i: usize) -> [f32; 3] {
+        match self.colors.get(i * 3..i * 3 + 3) {
+            Some(&[r, g, b]) if self.has_color => [r, g, b],
+            _ => [0.0; 3],
+        }
+    }
+    #[inline]
+    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
+        let d = self.dim;
+        let base = node.index as usize * 2 * d;
+        let mut lo = [0.0; MAX_DIM];
+        let mut hi = [0.0; MAX_DIM];
+        if let Some(s) = self.node_boxes.get(base..base + 2 * d) {
+            lo[..d].copy_from_slice(&s[..d]);
+            hi[..d].copy_from_slice(&s[d..]);
+        }
+        (lo, hi)
+    }
+    #[inline]
+    fn node_color(&self, node: Node) -> [f32; 3] {
+        let i = node.index as usize;
+        match self.node_colors.get(i * 3..i * 3 + 3) {
+            Some(&[r, g, b]) if self.has_color => [r, g, b],
+            _ => [0.0; 3],
+        }
+    }
+}
