@@ -275,38 +275,54 @@ impl Prepared<'_> {
                     Some(&[r, g, b]) => [r, g, b],
                     _ => no_color,
                 };
-                // Cells to try per axis.
+                // Cells to try per axis, and their squared distances along the axis when the span
+                // is small enough to tabulate.
                 let mut lo = [0usize; D];
                 let mut hi = [0usize; D];
+                let mut sq = [[0f32; SPAN]; D];
+                let mut small = true;
                 let mut empty = false;
                 for k in 0..D {
                     let span = match cutoff {
-                        Cutoff::Exact => exact_span(y[k], &axes[k], kp.radius2),
+                        Cutoff::Exact => quick_span(y[k], &axes[k], radius, kp.radius2),
                         Cutoff::Splat => splat_span(y[k], resu[k], radius, first[k], last[k]),
                     };
-                    match span {
-                        Some((a, b)) => {
-                            lo[k] = a;
-                            hi[k] = b;
+                    let Some((mut a, mut b)) = span else {
+                        empty = true;
+                        break;
+                    };
+                    if b - a < SPAN {
+                        let row = &mut sq[k];
+                        let mut len = b - a + 1;
+                        for (j, v) in row.iter_mut().enumerate().take(len) {
+                            let t = y[k] - axes[k].center(a + j);
+                            *v = t * t;
                         }
-                        None => {
-                            empty = true;
-                            break;
+                        if let Cutoff::Exact = cutoff {
+                            // Drop end cells already too far along this axis alone.
+                            let lead = row[..len].iter().take_while(|&&v| v > kp.radius2).count();
+                            row.copy_within(lead..len, 0);
+                            len -= lead;
+                            a += lead;
+                            while len > 0 && row[len - 1] > kp.radius2 {
+                                len -= 1;
+                            }
+                            if len == 0 {
+                                empty = true;
+                                break;
+                            }
+                            b = a + len - 1;
                         }
+                    } else {
+                        small = false;
                     }
+                    lo[k] = a;
+                    hi[k] = b;
                 }
                 if empty {
                     continue;
                 }
-                if (0..D).all(|k| hi[k] - lo[k] < SPAN) {
-                    // Squared distances per axis, tabulated once per point.
-                    let mut sq = [[0f32; SPAN]; D];
-                    for k in 0..D {
-                        for (j, v) in sq[k].iter_mut().enumerate().take(hi[k] - lo[k] + 1) {
-                            let t = y[k] - axes[k].center(lo[k] + j);
-                            *v = t * t;
-                        }
-                    }
+                if small {
                     small_cells::<D>(&axes, &lo, &hi, &stride, &sq, kp, &c, &mut batch, sink);
                 } else {
                     cells::<D>(y, &axes, &lo, &hi, &stride, kp, &c, &mut batch, sink);
@@ -555,6 +571,25 @@ fn exact_span(y: f32, axis: &Axis<'_>, radius2: f32) -> Option<(usize, usize)> {
         b += 1;
     }
     Some((a, b))
+}
+
+/// A superset of [`exact_span`] from arithmetic (cells within the radius, one cell of slack each
+/// side for rounding), when coordinates are small enough for that arithmetic to be accurate to a
+/// fraction of a cell; [`exact_span`] itself otherwise.
+#[inline(always)]
+fn quick_span(y: f32, axis: &Axis<'_>, radius: f32, radius2: f32) -> Option<(usize, usize)> {
+    let res = axis.res;
+    let extent = (y.abs() + radius) * res;
+    if extent.is_nan() || extent >= 1e6 {
+        return exact_span(y, axis, radius2);
+    }
+    let a = (ceil((y - radius) * res - 0.5) - 1).max(axis.first as i64);
+    let b = (floor((y + radius) * res - 0.5) + 1).min(axis.last as i64);
+    if a > b {
+        None
+    } else {
+        Some((a as usize, b as usize))
+    }
 }
 
 /// The candidate cells of `splat::splat` on one axis, clipped to `first..=last`.
