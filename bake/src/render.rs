@@ -1,5 +1,6 @@
 //! Rendering 2D blends to images through the runtime: per-pixel point queries or one splat, then
-//! the inputs' composite rule. Everything here goes through `otbake-runtime`, exactly as an engine
+//! the inputs' composite rule. Both mix the weights once (`Blend::prepare`) and evaluate horizontal
+//! bands in parallel with the runtime's region queries, which equal per-pixel queries bit for bit. Everything here goes through `otbake-runtime`, exactly as an engine
 //! would, so the images are a test of the runtime too.
 
 use crate::fsio::{read_aligned, IoError};
