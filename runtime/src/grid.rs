@@ -280,6 +280,8 @@ impl Prepared<'_> {
                 let mut lo = [0usize; D];
                 let mut hi = [0usize; D];
                 let mut sq = [[0f32; SPAN]; D];
+                // Where cell `lo[k]` sits in `sq[k]`.
+                let mut off = [0usize; D];
                 let mut small = true;
                 let mut empty = false;
                 for k in 0..D {
@@ -301,10 +303,10 @@ impl Prepared<'_> {
                         if let Cutoff::Exact = cutoff {
                             // Drop end cells already too far along this axis alone.
                             let lead = row[..len].iter().take_while(|&&v| v > kp.radius2).count();
-                            row.copy_within(lead..len, 0);
+                            off[k] = lead;
                             len -= lead;
                             a += lead;
-                            while len > 0 && row[len - 1] > kp.radius2 {
+                            while len > 0 && row[lead + len - 1] > kp.radius2 {
                                 len -= 1;
                             }
                             if len == 0 {
@@ -323,7 +325,9 @@ impl Prepared<'_> {
                     continue;
                 }
                 if small {
-                    small_cells::<D>(&axes, &lo, &hi, &stride, &sq, kp, &c, &mut batch, sink);
+                    small_cells::<D>(
+                        &axes, &lo, &hi, &stride, &sq, &off, kp, &c, &mut batch, sink,
+                    );
                 } else {
                     cells::<D>(y, &axes, &lo, &hi, &stride, kp, &c, &mut batch, sink);
                 }
@@ -459,7 +463,7 @@ fn cells<const D: usize>(
 const SPAN: usize = 8;
 
 /// [`cells`] for spans of at most [`SPAN`] cells per axis, from tabulated squared distances
-/// `sq[k][j]` of cell `lo[k] + j` (the same values, so the same bits).
+/// `sq[k][off[k] + j]` of cell `lo[k] + j` (the same values, so the same bits).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn small_cells<const D: usize>(
@@ -468,12 +472,14 @@ fn small_cells<const D: usize>(
     hi: &[usize; D],
     stride: &[usize; D],
     sq: &[[f32; SPAN]; D],
+    off: &[usize; D],
     kp: kernel::Prepared,
     c: &[f32; 3],
     batch: &mut Batch,
     sink: &mut impl FnMut(usize, f32, &[f32; 3]),
 ) {
-    let n0 = (hi[0] - lo[0] + 1).min(SPAN);
+    let s0 = off[0].min(SPAN);
+    let row0 = &sq[0][s0..(s0 + hi[0] - lo[0] + 1).min(SPAN)];
     let base0 = lo[0] - axes[0].first;
     let mut idx = [0usize; D];
     loop {
@@ -481,13 +487,13 @@ fn small_cells<const D: usize>(
         let mut tail = 0.0f32;
         let mut tails = [0f32; D];
         for k in 1..D {
-            tails[k] = sq[k][idx[k].min(SPAN - 1)];
+            tails[k] = sq[k][(off[k] + idx[k]).min(SPAN - 1)];
             row += (lo[k] + idx[k] - axes[k].first) * stride[k];
         }
         if D == 2 {
             tail = tails[1];
         }
-        for (i, &s0) in sq[0][..n0].iter().enumerate() {
+        for (i, &s0) in row0.iter().enumerate() {
             // Summed in axis order from 0, as `point::point` and `splat::splat` do.
             let r2 = if D == 2 {
                 s0 + tail
