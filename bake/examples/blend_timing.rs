@@ -4,16 +4,39 @@
 //! cargo run --release --example blend_timing -- manifests/shapes.toml [REPEATS]
 //! ```
 //! Bakes what is missing first. Prints the median time of each method over REPEATS runs (default 20),
-//! single-threaded and with all threads, and their ratio, so figures are comparable within one run.
+//! single-threaded and with all threads (whole renders: mixing the weights, region queries in bands,
+//! shading), their ratio, and the runtime alone on one thread (mixing, whole-image point grid,
+//! whole-image splat), so figures are comparable within one run.
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
 use otbake::render::{render, Archives, Method, RenderSettings};
+use otbake_runtime::{Blend, Kernel, PointValue, PreparedBuffers, Region};
 use std::time::Instant;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+/// CPU time this thread has run, in seconds (Linux `schedstat`; wall-clock medians on a loaded
+/// machine include time other processes held the core, this does not). `None` elsewhere.
+fn thread_cpu() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    Some(s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9)
+}
+
+/// Median wall-clock and (if available) CPU seconds of `repeats` runs of `f`.
+fn time(repeats: usize, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<(f64, f64)> {
+    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
+    for _ in 0..repeats {
+        let c = thread_cpu();
+        let t = Instant::now();
+        f()?;
+        wall.push(t.elapsed().as_secs_f64());
+        cpu.push(thread_cpu().zip(c).map_or(f64::NAN, |(b, a)| b - a));
+    }
+    Ok((median(wall), median(cpu)))
 }
 
 fn main() -> anyhow::Result<()> {
@@ -65,6 +88,60 @@ fn main() -> anyhow::Result<()> {
             );
             rows.push((threads, method, med));
         }
+    }
+    // The runtime alone, one thread: mixing the weights once, then whole-image region queries.
+    let proxy = archives.proxy()?;
+    let blend = Blend::new(proxy, &maps)?;
+    let sizes = blend.prepared_sizes();
+    let mut buffers = [
+        vec![0.0f32; sizes.positions],
+        vec![0.0f32; sizes.colors],
+        vec![0.0f32; sizes.node_boxes],
+        vec![0.0f32; sizes.node_colors],
+    ];
+    let prepare = time(repeats, || {
+        let [p, c, b, nc] = &mut buffers;
+        blend.prepare(
+            &weights,
+            PreparedBuffers {
+                positions: p,
+                colors: c,
+                node_boxes: b,
+                node_colors: nc,
+            },
+        )?;
+        Ok(())
+    })?;
+    let [p, c, b, nc] = &mut buffers;
+    let prep = blend.prepare(
+        &weights,
+        PreparedBuffers {
+            positions: p,
+            colors: c,
+            node_boxes: b,
+            node_colors: nc,
+        },
+    )?;
+    let res = [256, 256, 1, 1];
+    let kernel = Kernel { sigma: 0.5 / 256.0 };
+    let mut values = vec![PointValue::default(); 256 * 256];
+    let mut density = vec![0.0f32; 256 * 256];
+    let mut color = vec![0.0f32; 256 * 256 * 3];
+    let grid = time(repeats, || {
+        prep.point_grid(kernel, Region::full(res), &mut values)?;
+        Ok(())
+    })?;
+    let splat = time(repeats, || {
+        prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color))?;
+        Ok(())
+    })?;
+    println!("runtime only, 1 thread, median wall / CPU ms:");
+    for (name, (wall, cpu)) in [
+        ("Blend::prepare", prepare),
+        ("Prepared::point_grid 256x256", grid),
+        ("Prepared::splat_region 256x256", splat),
+    ] {
+        println!("  {name:32} {:7.2} / {:7.2}", wall * 1e3, cpu * 1e3);
     }
     for (threads, _, _) in rows.iter().filter(|r| r.1 == Method::Query) {
         let q = rows

@@ -1,12 +1,13 @@
 //! Rendering 2D blends to images through the runtime: per-pixel point queries or one splat, then
-//! the inputs' composite rule. Everything here goes through `otbake-runtime`, exactly as an engine
+//! the inputs' composite rule. Both mix the weights once (`Blend::prepare`) and evaluate horizontal
+//! bands in parallel with the runtime's region queries, which equal per-pixel queries bit for bit. Everything here goes through `otbake-runtime`, exactly as an engine
 //! would, so the images are a test of the runtime too.
 
 use crate::fsio::{read_aligned, IoError};
 use crate::imageio::Rgba;
 use crate::manifest::Manifest;
 use otbake_formats::Composite;
-use otbake_runtime::{Blend, Kernel, Map, Proxy, SplatTarget, MAX_DIM};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, MAX_DIM};
 use rayon::prelude::*;
 use rkyv::util::AlignedVec;
 
@@ -152,51 +153,79 @@ pub fn render<'a>(
         sigma: s.sigma_px / w.max(h) as f32,
     };
     let mut img = Rgba::filled(w, h, [0.0; 4]);
+    // The blend is mixed once for these weights; both methods then read plain arrays.
+    let sizes = blend.prepared_sizes();
+    let mut buffers = [
+        vec![0.0f32; sizes.positions],
+        vec![0.0f32; sizes.colors],
+        vec![0.0f32; sizes.node_boxes],
+        vec![0.0f32; sizes.node_colors],
+    ];
+    let [positions, colors, node_boxes, node_colors] = &mut buffers;
+    let prep = blend
+        .prepare(
+            weights,
+            PreparedBuffers {
+                positions,
+                colors,
+                node_boxes,
+                node_colors,
+            },
+        )
+        .map_err(runtime("--weights"))?;
+    let mut res = [1u32; MAX_DIM];
+    res[0] = w as u32;
+    res[1] = h as u32;
+    // Horizontal bands, one coherent traversal each, rendered in parallel into disjoint slices; the
+    // result does not depend on the banding (region queries equal per-pixel queries exactly).
+    let band = band_rows(h);
     match s.method {
         Method::Query => {
-            img.pixels
-                .par_chunks_mut(w * 4)
+            let mut values = vec![PointValue::default(); w * h];
+            values
+                .par_chunks_mut(w * band)
                 .enumerate()
-                .try_for_each(|(y, row)| -> Result<(), otbake_runtime::Error> {
-                    for x in 0..w {
-                        let p = [(x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32];
-                        let v = blend.point(weights, &p, kernel)?;
-                        row[x * 4..x * 4 + 4].copy_from_slice(&shade(rule, v.mass, v.color));
-                    }
-                    Ok(())
+                .try_for_each(|(b, chunk)| {
+                    let rows = (chunk.len() / w) as u32;
+                    prep.point_grid(kernel, Region::rows(res, (b * band) as u32, rows), chunk)
                 })
                 .map_err(runtime("point query"))?;
+            img.pixels
+                .par_chunks_mut(4)
+                .zip(&values)
+                .for_each(|(px, v)| px.copy_from_slice(&shade(rule, v.mass, v.color)));
         }
         Method::Splat => {
             let mut density = vec![0.0f32; w * h];
             let mut color = vec![0.0f32; w * h * 3];
-            let mut res = [1u32; MAX_DIM];
-            res[0] = w as u32;
-            res[1] = h as u32;
-            let has_color = blend.has_color();
-            blend
-                .splat(
-                    weights,
-                    kernel,
-                    SplatTarget {
-                        res,
-                        density: &mut density,
-                        color: if has_color { Some(&mut color) } else { None },
-                    },
-                )
+            let has_color = prep.has_color();
+            density
+                .par_chunks_mut(w * band)
+                .zip(color.par_chunks_mut(w * band * 3))
+                .enumerate()
+                .try_for_each(|(b, (d, c))| {
+                    let rows = (d.len() / w) as u32;
+                    let region = Region::rows(res, (b * band) as u32, rows);
+                    prep.splat_region(kernel, region, d, if has_color { Some(c) } else { None })
+                })
                 .map_err(runtime("splat"))?;
-            let mean_mass: f32 = maps
-                .iter()
-                .zip(weights)
-                .map(|(m, w)| m.mean_mass() * w)
-                .sum();
-            for (i, px) in img.pixels.chunks_exact_mut(4).enumerate() {
-                let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
-                px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
-            }
+            let mean_mass = prep.mean_mass();
+            img.pixels
+                .par_chunks_mut(4)
+                .enumerate()
+                .for_each(|(i, px)| {
+                    let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
+                    px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
+                });
         }
     }
     Ok(img)
+}
+
+/// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the
+/// 3σ margin each band's traversal also visits stays small.
+fn band_rows(h: usize) -> usize {
+    (h / (4 * rayon::current_num_threads())).clamp(8, 64)
 }
 
 /// Cell position (column, row) and weights of every cell of a blend grid of `k` inputs.

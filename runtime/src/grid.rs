@@ -210,8 +210,33 @@ impl Prepared<'_> {
             clo[k] = center(first[k], res[k]);
             chi[k] = center(last[k], res[k]);
         }
+        // Cell centers along each axis, computed once per region (regions wider than the table
+        // compute them per use, with the same formula).
+        let mut table = [[0f32; CENTERS]; D];
+        for k in 0..D {
+            if region.size[k] as usize <= CENTERS {
+                for (j, c) in table[k]
+                    .iter_mut()
+                    .enumerate()
+                    .take(region.size[k] as usize)
+                {
+                    *c = center(first[k] + j, res[k]);
+                }
+            }
+        }
+        let axes: [Axis<'_>; D] = core::array::from_fn(|k| Axis {
+            res: res[k],
+            first: first[k],
+            last: last[k],
+            table: if region.size[k] as usize <= CENTERS {
+                Some(&table[k][..])
+            } else {
+                None
+            },
+        });
         let radius = kernel.sigma * kernel::TRUNCATION;
         let no_color = [0.0f32; 3];
+        let mut batch = Batch::new();
         let mut stack = Stack::new(Node::root(self.n));
         while let Some(node) = stack.pop() {
             if node.count == 0 {
@@ -250,32 +275,125 @@ impl Prepared<'_> {
                     Some(&[r, g, b]) => [r, g, b],
                     _ => no_color,
                 };
-                // Cells to try per axis.
+                // Cells to try per axis, and their squared distances along the axis when the span
+                // is small enough to tabulate.
                 let mut lo = [0usize; D];
                 let mut hi = [0usize; D];
+                let mut sq = [[0f32; SPAN]; D];
+                // Where cell `lo[k]` sits in `sq[k]`.
+                let mut off = [0usize; D];
+                let mut small = true;
                 let mut empty = false;
                 for k in 0..D {
                     let span = match cutoff {
-                        Cutoff::Exact => exact_span(y[k], res[k], first[k], last[k], kp.radius2),
+                        Cutoff::Exact => quick_span(y[k], &axes[k], radius, kp.radius2),
                         Cutoff::Splat => splat_span(y[k], resu[k], radius, first[k], last[k]),
                     };
-                    match span {
-                        Some((a, b)) => {
-                            lo[k] = a;
-                            hi[k] = b;
+                    let Some((mut a, mut b)) = span else {
+                        empty = true;
+                        break;
+                    };
+                    if b - a < SPAN {
+                        let row = &mut sq[k];
+                        let mut len = b - a + 1;
+                        for (j, v) in row.iter_mut().enumerate().take(len) {
+                            let t = y[k] - axes[k].center(a + j);
+                            *v = t * t;
                         }
-                        None => {
-                            empty = true;
-                            break;
+                        if let Cutoff::Exact = cutoff {
+                            // Drop end cells already too far along this axis alone.
+                            let lead = row[..len].iter().take_while(|&&v| v > kp.radius2).count();
+                            off[k] = lead;
+                            len -= lead;
+                            a += lead;
+                            while len > 0 && row[lead + len - 1] > kp.radius2 {
+                                len -= 1;
+                            }
+                            if len == 0 {
+                                empty = true;
+                                break;
+                            }
+                            b = a + len - 1;
                         }
+                    } else {
+                        small = false;
                     }
+                    lo[k] = a;
+                    hi[k] = b;
                 }
                 if empty {
                     continue;
                 }
-                cells::<D>(y, &res, &lo, &hi, &first, &stride, kp, &c, sink);
+                if small {
+                    small_cells::<D>(
+                        &axes, &lo, &hi, &stride, &sq, &off, kp, &c, &mut batch, sink,
+                    );
+                } else {
+                    cells::<D>(y, &axes, &lo, &hi, &stride, kp, &c, &mut batch, sink);
+                }
             }
         }
+        batch.flush(kp, sink);
+    }
+}
+
+/// Entries a [`Batch`] holds.
+const BATCH: usize = 64;
+
+/// (cell, squared distance, color) pairs waiting for their kernel weights: weights are computed for
+/// a whole batch in one branch-free loop the compiler vectorizes (lane by lane the same operations
+/// as one [`kernel::Prepared::weight`], so the same bits), then handed to the sink in arrival order.
+struct Batch {
+    cell: [usize; BATCH],
+    r2: [f32; BATCH],
+    color: [[f32; 3]; BATCH],
+    len: usize,
+}
+
+impl Batch {
+    fn new() -> Self {
+        Self {
+            cell: [0; BATCH],
+            r2: [0.0; BATCH],
+            color: [[0.0; 3]; BATCH],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn push(
+        &mut self,
+        cell: usize,
+        r2: f32,
+        c: &[f32; 3],
+        kp: kernel::Prepared,
+        sink: &mut impl FnMut(usize, f32, &[f32; 3]),
+    ) {
+        if self.len >= BATCH {
+            self.flush(kp, sink);
+        }
+        if let (Some(a), Some(b), Some(d)) = (
+            self.cell.get_mut(self.len),
+            self.r2.get_mut(self.len),
+            self.color.get_mut(self.len),
+        ) {
+            *a = cell;
+            *b = r2;
+            *d = *c;
+            self.len += 1;
+        }
+    }
+
+    fn flush(&mut self, kp: kernel::Prepared, sink: &mut impl FnMut(usize, f32, &[f32; 3])) {
+        let mut w = [0.0f32; BATCH];
+        for (w, &r2) in w.iter_mut().zip(&self.r2) {
+            *w = kp.weight(r2);
+        }
+        let n = self.len.min(BATCH);
+        for ((&cell, &w), c) in self.cell[..n].iter().zip(&w[..n]).zip(&self.color[..n]) {
+            sink(cell, w, c);
+        }
+        self.len = 0;
     }
 }
 
@@ -293,16 +411,17 @@ enum Cutoff {
 #[inline(always)]
 fn cells<const D: usize>(
     y: &[f32],
-    res: &[f32; D],
+    axes: &[Axis<'_>; D],
     lo: &[usize; D],
     hi: &[usize; D],
-    first: &[usize; D],
     stride: &[usize; D],
     kp: kernel::Prepared,
     c: &[f32; 3],
+    batch: &mut Batch,
     sink: &mut impl FnMut(usize, f32, &[f32; 3]),
 ) {
     let y0 = y[0];
+    let a0 = &axes[0];
     // Odometer over axes 1.. (axis 0 is the inner loop).
     let mut idx = *lo;
     loop {
@@ -310,19 +429,19 @@ fn cells<const D: usize>(
         let mut tail = [0f32; D];
         let mut row = 0usize;
         for k in 1..D {
-            let t = y[k] - center(idx[k], res[k]);
+            let t = y[k] - axes[k].center(idx[k]);
             tail[k] = t * t;
-            row += (idx[k] - first[k]) * stride[k];
+            row += (idx[k] - axes[k].first) * stride[k];
         }
         for i in lo[0]..=hi[0] {
-            let t = y0 - center(i, res[0]);
+            let t = y0 - a0.center(i);
             // Summed in axis order from 0, as `point::point` and `splat::splat` do.
             let mut r2 = t * t;
             for tk in &tail[1..] {
                 r2 += tk;
             }
             if r2 <= kp.radius2 {
-                sink(row + (i - first[0]), kp.weight(r2), c);
+                batch.push(row + (i - a0.first), r2, c, kp, sink);
             }
         }
         let mut k = 1;
@@ -340,14 +459,101 @@ fn cells<const D: usize>(
     }
 }
 
+/// Widest per-axis span of cells [`small_cells`] handles (tabulated squared distances).
+const SPAN: usize = 8;
+
+/// [`cells`] for spans of at most [`SPAN`] cells per axis, from tabulated squared distances
+/// `sq[k][off[k] + j]` of cell `lo[k] + j` (the same values, so the same bits).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn small_cells<const D: usize>(
+    axes: &[Axis<'_>; D],
+    lo: &[usize; D],
+    hi: &[usize; D],
+    stride: &[usize; D],
+    sq: &[[f32; SPAN]; D],
+    off: &[usize; D],
+    kp: kernel::Prepared,
+    c: &[f32; 3],
+    batch: &mut Batch,
+    sink: &mut impl FnMut(usize, f32, &[f32; 3]),
+) {
+    let s0 = off[0].min(SPAN);
+    let row0 = &sq[0][s0..(s0 + hi[0] - lo[0] + 1).min(SPAN)];
+    let base0 = lo[0] - axes[0].first;
+    let mut idx = [0usize; D];
+    loop {
+        let mut row = base0;
+        let mut tail = 0.0f32;
+        let mut tails = [0f32; D];
+        for k in 1..D {
+            tails[k] = sq[k][(off[k] + idx[k]).min(SPAN - 1)];
+            row += (lo[k] + idx[k] - axes[k].first) * stride[k];
+        }
+        if D == 2 {
+            tail = tails[1];
+        }
+        for (i, &s0) in row0.iter().enumerate() {
+            // Summed in axis order from 0, as `point::point` and `splat::splat` do.
+            let r2 = if D == 2 {
+                s0 + tail
+            } else {
+                let mut r2 = s0;
+                for t in &tails[1..] {
+                    r2 += t;
+                }
+                r2
+            };
+            if r2 <= kp.radius2 {
+                batch.push(row + i, r2, c, kp, sink);
+            }
+        }
+        let mut k = 1;
+        loop {
+            if k >= D {
+                return;
+            }
+            if lo[k] + idx[k] < hi[k] {
+                idx[k] += 1;
+                break;
+            }
+            idx[k] = 0;
+            k += 1;
+        }
+    }
+}
+
+/// Cells per axis whose centers [`Prepared::visit`] tabulates (on the stack).
+const CENTERS: usize = 512;
+
+/// One axis of a region: its grid resolution, cell range and (if it fits) its table of centers.
+struct Axis<'t> {
+    res: f32,
+    first: usize,
+    last: usize,
+    table: Option<&'t [f32]>,
+}
+
+impl Axis<'_> {
+    /// Center of global cell `i` (`first <= i <= last`).
+    #[inline(always)]
+    fn center(&self, i: usize) -> f32 {
+        match self.table.and_then(|t| t.get(i.wrapping_sub(self.first))) {
+            Some(&c) => c,
+            None => center(i, self.res),
+        }
+    }
+}
+
 /// The cells `first..=last` of one axis whose computed squared distance `(y - center)²` is within
 /// `radius2`: a necessary condition for the full distance (a sum of non-negative terms, and rounding
 /// is monotone), and an interval because the distance falls then rises along the axis. Found from
 /// the nearest cell outwards, so rounding in the estimate cannot drop a cell.
 #[inline(always)]
-fn exact_span(y: f32, res: f32, first: usize, last: usize, radius2: f32) -> Option<(usize, usize)> {
+fn exact_span(y: f32, axis: &Axis<'_>, radius2: f32) -> Option<(usize, usize)> {
+    let (res, first, last) = (axis.res, axis.first, axis.last);
     let f = |i: usize| {
-        let t = y - center(i, res);
+        let t = y - axis.center(i);
         t * t
     };
     // Estimate of the nearest cell, clamped before the integer conversion.
@@ -371,6 +577,25 @@ fn exact_span(y: f32, res: f32, first: usize, last: usize, radius2: f32) -> Opti
         b += 1;
     }
     Some((a, b))
+}
+
+/// A superset of [`exact_span`] from arithmetic (cells within the radius, one cell of slack each
+/// side for rounding), when coordinates are small enough for that arithmetic to be accurate to a
+/// fraction of a cell; [`exact_span`] itself otherwise.
+#[inline(always)]
+fn quick_span(y: f32, axis: &Axis<'_>, radius: f32, radius2: f32) -> Option<(usize, usize)> {
+    let res = axis.res;
+    let extent = (y.abs() + radius) * res;
+    if extent.is_nan() || extent >= 1e6 {
+        return exact_span(y, axis, radius2);
+    }
+    let a = (ceil((y - radius) * res - 0.5) - 1).max(axis.first as i64);
+    let b = (floor((y + radius) * res - 0.5) + 1).min(axis.last as i64);
+    if a > b {
+        None
+    } else {
+        Some((a as usize, b as usize))
+    }
 }
 
 /// The candidate cells of `splat::splat` on one axis, clipped to `first..=last`.

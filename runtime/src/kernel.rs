@@ -63,21 +63,33 @@ impl Prepared {
 
 /// `e^x` for `x` in [-4.5, 0] (the truncated kernel's range), within ~2 ulp; `core` has no `exp`
 /// without `std`, and the runtime depends on nothing but the archive format.
+///
+/// Branch-free and free of float-to-int casts (Rust's saturating casts do not vectorize), so loops
+/// over many weights compile to SIMD code with lane-by-lane the same results.
 #[inline]
 pub fn exp(x: f32) -> f32 {
-    // e^x = 2^k · e^r with k = round(x / ln 2), |r| <= ln2 / 2.
+    // e^x = 2^k · e^r with k = trunc(x / ln 2 - 0.5) (a rounding of x / ln 2), |r| <= ln2 / 2.
     const LN2_HI: f32 = 0.693_145_75;
     const LN2_LO: f32 = 1.428_606_8e-6;
+    // Adding and subtracting 1.5·2^23 rounds an |v| < 2^22 to the nearest integer (f32 has no
+    // fraction bits left at that magnitude).
+    const ROUND: f32 = 12_582_912.0;
     let x = x.clamp(-80.0, 0.0);
-    let kf = (x * core::f32::consts::LOG2_E - 0.5) as i32 as f32; // x <= 0: truncation toward 0 of (v - 0.5) rounds
+    let v = x * core::f32::consts::LOG2_E - 0.5;
+    // v <= -0.5: truncation toward 0 is the ceiling; from the nearest integer, step up if below.
+    let t = (v + ROUND) - ROUND;
+    let kf = if t < v { t + 1.0 } else { t };
     let r = (x - kf * LN2_HI) - kf * LN2_LO;
     // Degree-6 Taylor polynomial of e^r on |r| <= 0.35: error < 2e-8 relative.
     let p = 1.0
         + r * (1.0
             + r * (0.5
                 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
-    let k = kf as i32;
-    f32::from_bits(((k + 127) as u32) << 23) * p
+    // 2^k from the bits of 2^23 + 127 + k (an exact f32 whose low mantissa bits are k + 127).
+    let biased = (kf + (127.0 + 8_388_608.0))
+        .to_bits()
+        .wrapping_sub(0x4B00_0000);
+    f32::from_bits(biased << 23) * p
 }
 
 #[cfg(test)]
@@ -94,6 +106,47 @@ mod tests {
             worst = worst.max(((got - want) / want).abs());
         }
         assert!(worst < 3e-7, "worst relative error {worst}");
+    }
+
+    /// The cast-based formulation `exp` had before it was made vectorizable: results must not
+    /// change by a single bit (kernel sums of every query depend on them).
+    fn reference_exp(x: f32) -> f32 {
+        const LN2_HI: f32 = 0.693_145_75;
+        const LN2_LO: f32 = 1.428_606_8e-6;
+        let x = x.clamp(-80.0, 0.0);
+        let kf = (x * core::f32::consts::LOG2_E - 0.5) as i32 as f32;
+        let r = (x - kf * LN2_HI) - kf * LN2_LO;
+        let p = 1.0
+            + r * (1.0
+                + r * (0.5
+                    + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
+        let k = kf as i32;
+        f32::from_bits(((k + 127) as u32) << 23) * p
+    }
+
+    #[test]
+    fn exp_equals_the_reference_bit_for_bit() {
+        // Every 61st f32 from -0 down past -128 (the clamp), and every f32 of [-4.5, -4.4].
+        let mut bits = 0x8000_0000u32;
+        let mut checked = 0u64;
+        while bits <= 0xC300_0000 {
+            let x = f32::from_bits(bits);
+            assert_eq!(exp(x).to_bits(), reference_exp(x).to_bits(), "x = {x:e}");
+            bits += if (-4.5..=-4.4).contains(&x) { 1 } else { 61 };
+            checked += 1;
+        }
+        assert!(checked > 10_000_000);
+        for x in [
+            0.0f32,
+            -0.0,
+            1.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -1e30,
+            f32::MIN,
+        ] {
+            assert_eq!(exp(x).to_bits(), reference_exp(x).to_bits(), "x = {x:e}");
+        }
     }
 
     #[test]

@@ -6,6 +6,11 @@
 //! barycenter samples, or a splat of the whole blend — for any non-negative weights summing to 1,
 //! passed on every call so they may change from one query point to the next.
 //!
+//! When weights stay fixed for many queries (a frame, an image), [`Blend::prepare`] mixes them once
+//! into caller-owned buffers; the [`Prepared`] blend answers the same queries with the same bits,
+//! and region queries ([`Prepared::point_grid`], [`Prepared::splat_region`]) evaluate a whole box of
+//! grid cells in one traversal, so a renderer can hand bands or tiles to its own threads.
+//!
 //! The crate is `#![no_std]`, never allocates, contains no `unsafe`, and returns an error (never
 //! panics) for any archive bytes, weights or coordinates.
 //!
@@ -39,6 +44,18 @@
 //! assert!(blend.point(&[0.5, 0.5], &[0.3, 0.3], Kernel { sigma: 0.01 })?.density > 0.0);
 //! // Weights are checked on every call.
 //! assert!(blend.point(&[0.7, 0.7], &[0.3, 0.3], Kernel { sigma: 0.01 }).is_err());
+//! // Prepared once for fixed weights: the same answers, and whole grids in one traversal.
+//! use otbake_runtime::{PointValue, PreparedBuffers, Region};
+//! let sizes = blend.prepared_sizes();
+//! let (mut p, mut c) = (vec![0.0; sizes.positions], vec![0.0; sizes.colors]);
+//! let (mut b, mut nc) = (vec![0.0; sizes.node_boxes], vec![0.0; sizes.node_colors]);
+//! let prep = blend.prepare(&[0.5, 0.5], PreparedBuffers {
+//!     positions: &mut p, colors: &mut c, node_boxes: &mut b, node_colors: &mut nc })?;
+//! let k = Kernel { sigma: 0.05 };
+//! assert_eq!(prep.point(&[0.3, 0.3], k)?, blend.point(&[0.5, 0.5], &[0.3, 0.3], k)?);
+//! let mut image = [PointValue::default(); 16];
+//! prep.point_grid(k, Region::full([4, 4, 1, 1]), &mut image)?;
+//! assert_eq!(image[5], prep.point(&[0.375, 0.375], k)?);
 //! # Ok::<(), otbake_runtime::Error>(())
 //! ```
 #![no_std]

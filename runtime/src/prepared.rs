@@ -70,18 +70,32 @@ pub struct Prepared<'b> {
 /// `out[j] = Σ_k w_k src_k[j]`, in the order of `blend::mix` (map by map, starting from +0), so
 /// every entry has the bits `mix` computes for it; map-major so the loops stream and vectorize.
 fn mix_buffer<'x>(out: &mut [f32], weights: &[f32], maps: impl Iterator<Item = &'x [f32_le]>) {
-    out.fill(0.0);
+    let mut first = true;
     for (&w, src) in weights.iter().zip(maps) {
-        if src.len() >= out.len() {
+        if first && src.len() >= out.len() {
+            // `0.0 + w·v` straight into the buffer: the bits of `mix`'s first step, one pass.
             for (o, v) in out.iter_mut().zip(src) {
-                *o += w * v.to_native();
+                *o = 0.0 + w * v.to_native();
             }
         } else {
-            // Unreachable for validated archives; mirrors `at`'s zero past the end.
-            for (j, o) in out.iter_mut().enumerate() {
-                *o += w * src.get(j).map_or(0.0, |v| v.to_native());
+            if first {
+                out.fill(0.0);
+            }
+            if src.len() >= out.len() {
+                for (o, v) in out.iter_mut().zip(src) {
+                    *o += w * v.to_native();
+                }
+            } else {
+                // Unreachable for validated archives; mirrors `at`'s zero past the end.
+                for (j, o) in out.iter_mut().enumerate() {
+                    *o += w * src.get(j).map_or(0.0, |v| v.to_native());
+                }
             }
         }
+        first = false;
+    }
+    if first {
+        out.fill(0.0);
     }
 }
 

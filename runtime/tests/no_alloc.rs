@@ -11,16 +11,28 @@ struct Counting;
 
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 
+thread_local! {
+    /// Set on the thread under test only: the test harness's own threads allocate concurrently
+    /// (output capture, bookkeeping), which made a global count flaky.
+    static COUNTING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+fn count() {
+    if COUNTING.try_with(|c| c.get()).unwrap_or(false) {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+    }
+}
+
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        count();
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -46,6 +58,11 @@ fn queries_do_not_allocate() {
             b.resize(len, 0.0);
         }
     }
+    COUNTING.with(|c| c.set(true));
+    // The counter sees this thread's allocations.
+    let probe = ALLOCATIONS.load(Ordering::SeqCst);
+    drop(std::hint::black_box(Vec::<u8>::with_capacity(1)));
+    assert_eq!(ALLOCATIONS.load(Ordering::SeqCst), probe + 1);
     let before = ALLOCATIONS.load(Ordering::SeqCst);
 
     let proxy = Proxy::open(&f.proxy).unwrap();
@@ -121,6 +138,7 @@ fn queries_do_not_allocate() {
     acc += grid.iter().map(|v| v.density).sum::<f32>();
 
     let after = ALLOCATIONS.load(Ordering::SeqCst);
+    COUNTING.with(|c| c.set(false));
     assert_eq!(
         after - before,
         0,
