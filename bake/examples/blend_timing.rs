@@ -26,17 +26,20 @@ fn thread_cpu() -> Option<f64> {
     Some(s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9)
 }
 
-/// Median wall-clock and (if available) CPU seconds of `repeats` runs of `f`.
+/// Median wall-clock and (if available) mean CPU seconds of `repeats` runs of `f` (the CPU clock
+/// advances in scheduler ticks, so only a total over all runs is meaningful).
 fn time(repeats: usize, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<(f64, f64)> {
-    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
+    let mut wall = Vec::new();
+    let c = thread_cpu();
     for _ in 0..repeats {
-        let c = thread_cpu();
         let t = Instant::now();
         f()?;
         wall.push(t.elapsed().as_secs_f64());
-        cpu.push(thread_cpu().zip(c).map_or(f64::NAN, |(b, a)| b - a));
     }
-    Ok((median(wall), median(cpu)))
+    let cpu = thread_cpu()
+        .zip(c)
+        .map_or(f64::NAN, |(b, a)| (b - a) / repeats as f64);
+    Ok((median(wall), cpu))
 }
 
 fn main() -> anyhow::Result<()> {
@@ -135,7 +138,7 @@ fn main() -> anyhow::Result<()> {
         prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color))?;
         Ok(())
     })?;
-    println!("runtime only, 1 thread, median wall / CPU ms:");
+    println!("runtime only, 1 thread, median wall / mean CPU ms:");
     for (name, (wall, cpu)) in [
         ("Blend::prepare", prepare),
         ("Prepared::point_grid 256x256", grid),

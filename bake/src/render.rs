@@ -153,15 +153,15 @@ pub fn render<'a>(
         sigma: s.sigma_px / w.max(h) as f32,
     };
     let mut img = Rgba::filled(w, h, [0.0; 4]);
-    // The blend is mixed once for these weights; both methods then read plain arrays.
+    // The blend is mixed once for these weights; both methods then read plain arrays. The buffers
+    // are kept per thread between renders (a grid renders many blends of one bake): fresh ones would
+    // cost page faults on every image.
     let sizes = blend.prepared_sizes();
-    let mut buffers = [
-        vec![0.0f32; sizes.positions],
-        vec![0.0f32; sizes.colors],
-        vec![0.0f32; sizes.node_boxes],
-        vec![0.0f32; sizes.node_colors],
-    ];
-    let [positions, colors, node_boxes, node_colors] = &mut buffers;
+    let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
+    store.resize(sizes.total(), 0.0);
+    let (positions, rest) = store.split_at_mut(sizes.positions);
+    let (colors, rest) = rest.split_at_mut(sizes.colors);
+    let (node_boxes, node_colors) = rest.split_at_mut(sizes.node_boxes);
     let prep = blend
         .prepare(
             weights,
@@ -219,7 +219,13 @@ pub fn render<'a>(
                 });
         }
     }
+    PREPARED.with(|b| *b.borrow_mut() = store);
     Ok(img)
+}
+
+thread_local! {
+    /// Prepared-blend buffers reused by [`render`] on this thread.
+    static PREPARED: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the

@@ -384,6 +384,16 @@ impl Batch {
         }
     }
 
+    /// Writes an entry at the end and keeps it if `keep`; the caller made room (`len < BATCH`).
+    #[inline(always)]
+    fn put(&mut self, cell: usize, r2: f32, c: &[f32; 3], keep: bool) {
+        let at = self.len.min(BATCH - 1);
+        self.cell[at] = cell;
+        self.r2[at] = r2;
+        self.color[at] = *c;
+        self.len = at + keep as usize;
+    }
+
     fn flush(&mut self, kp: kernel::Prepared, sink: &mut impl FnMut(usize, f32, &[f32; 3])) {
         let mut w = [0.0f32; BATCH];
         for (w, &r2) in w.iter_mut().zip(&self.r2) {
@@ -493,6 +503,11 @@ fn small_cells<const D: usize>(
         if D == 2 {
             tail = tails[1];
         }
+        // Room for the whole row, then a branch-free loop: every cell is written, only those within
+        // the cutoff are kept (the test's outcome is unpredictable, a branch on it is not cheap).
+        if batch.len + row0.len() > BATCH {
+            batch.flush(kp, sink);
+        }
         for (i, &s0) in row0.iter().enumerate() {
             // Summed in axis order from 0, as `point::point` and `splat::splat` do.
             let r2 = if D == 2 {
@@ -504,9 +519,7 @@ fn small_cells<const D: usize>(
                 }
                 r2
             };
-            if r2 <= kp.radius2 {
-                batch.push(row + i, r2, c, kp, sink);
-            }
+            batch.put(row + i, r2, c, r2 <= kp.radius2);
         }
         let mut k = 1;
         loop {

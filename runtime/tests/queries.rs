@@ -5,7 +5,9 @@
 mod common;
 
 use common::{fixture, weights, Fixture, Rng};
-use otbake_runtime::{Blend, Error, Kernel, Map, Proxy, SplatTarget};
+use otbake_runtime::{
+    Blend, Error, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget,
+};
 use proptest::prelude::*;
 
 fn open(f: &Fixture) -> (Proxy<'_>, Vec<Map<'_>>) {
@@ -310,6 +312,40 @@ fn exercise(blend: &Blend<'_, '_>) {
     let _ = blend.range(&w, &vec![f32::NEG_INFINITY; d], &vec![f32::INFINITY; d]);
     let _ = blend.sample(&w, 0);
     let _ = blend.sample(&w, blend.n().saturating_sub(1));
+    // The prepared blend and its region queries, on the same archive.
+    let sizes = blend.prepared_sizes();
+    let (mut p, mut c) = (vec![0.0; sizes.positions], vec![0.0; sizes.colors]);
+    let (mut b, mut nc) = (vec![0.0; sizes.node_boxes], vec![0.0; sizes.node_colors]);
+    let Ok(prep) = blend.prepare(
+        &w,
+        PreparedBuffers {
+            positions: &mut p,
+            colors: &mut c,
+            node_boxes: &mut b,
+            node_colors: &mut nc,
+        },
+    ) else {
+        return;
+    };
+    let mut res = [1u32; 4];
+    res[..d].fill(5);
+    let mut region = Region::full(res);
+    region.start[0] = 1;
+    region.size[0] = 3;
+    let cells = 3 * 5usize.pow(d as u32 - 1);
+    for sigma in [1e-6f32, 0.05, 10.0, f32::MAX] {
+        let kernel = Kernel { sigma };
+        for q in [0.5f32, -1e30, 1e30] {
+            let _ = prep.point(&vec![q; d], kernel);
+        }
+        let mut out = vec![PointValue::default(); cells];
+        let _ = prep.point_grid(kernel, region, &mut out);
+        let mut density = vec![0.0f32; cells];
+        let mut color = vec![0.0f32; cells * 3];
+        let _ = prep.splat_region(kernel, region, &mut density, Some(&mut color));
+    }
+    let _ = prep.range(&vec![0.2; d], &vec![0.8; d]);
+    let _ = prep.sample(0);
 }
 
 /// Flips payload bits and then *repairs the checksum*, so the damage reaches rkyv validation and the
