@@ -104,7 +104,7 @@ fn runtime(context: &str) -> impl FnOnce(otbake_runtime::Error) -> RenderError +
 }
 
 /// The display rule shared by all maps (additive if they disagree).
-fn composite(maps: &[Map<'_>]) -> Composite {
+pub fn composite(maps: &[Map<'_>]) -> Composite {
     let first = maps.first().map_or(Composite::Additive, |m| m.composite());
     if maps.iter().all(|m| m.composite() == first) {
         first
@@ -113,14 +113,8 @@ fn composite(maps: &[Map<'_>]) -> Composite {
     }
 }
 
-/// One pixel of a blend of `maps` with `weights`, from its mass and premultiplied color (the maps'
-/// shared composite rule).
-pub fn shade_pixel(maps: &[Map<'_>], _weights: &[f32], mass: f32, color: [f32; 3]) -> [f32; 4] {
-    shade(composite(maps), mass, color)
-}
-
 /// One pixel from blended mass and premultiplied color.
-fn shade(rule: Composite, mass: f32, color: [f32; 3]) -> [f32; 4] {
+pub fn shade(rule: Composite, mass: f32, color: [f32; 3]) -> [f32; 4] {
     match rule {
         Composite::Additive => [color[0], color[1], color[2], 1.0],
         Composite::Alpha => {

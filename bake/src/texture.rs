@@ -4,7 +4,7 @@
 //! texture lookup does — so a weight field costs nothing to bake: it is only evaluated at run time.
 
 use crate::imageio::Rgba;
-use crate::render::{shade_pixel, RenderError};
+use crate::render::{composite, shade, RenderError};
 use otbake_runtime::{Blend, Kernel, Map, Proxy};
 use rayon::prelude::*;
 
@@ -169,6 +169,7 @@ pub fn render_texture<'a>(
 ) -> Result<Rgba, RenderError> {
     let blend = image_blend(proxy, maps)?;
     let k = maps.len();
+    let rule = composite(maps);
     if let WeightField::Constant(w) = field {
         blend.check_weights(w).map_err(runtime("--weights"))?;
     }
@@ -193,7 +194,7 @@ pub fn render_texture<'a>(
                     ((y as f32 + 0.5) / tile).fract(),
                 ];
                 let v = blend.point(&w, &p, kernel)?;
-                row[x * 4..x * 4 + 4].copy_from_slice(&shade_pixel(maps, &w, v.mass, v.color));
+                row[x * 4..x * 4 + 4].copy_from_slice(&shade(rule, v.mass, v.color));
             }
             Ok(())
         })
@@ -216,6 +217,7 @@ pub fn render_lod<'a>(
 ) -> Result<Rgba, RenderError> {
     let blend = image_blend(proxy, maps)?;
     let k = maps.len();
+    let rule = composite(maps);
     let per_px = repeats / width.min(height) as f32;
     let mut img = Rgba::filled(width, height, [0.0; 4]);
     img.pixels
@@ -249,7 +251,7 @@ pub fn render_lod<'a>(
                     }
                 }
                 let area = per_px.min(1.0) * per_px.min(1.0);
-                let px = crate::render::shade_pixel(maps, &w, mass / area, color.map(|c| c / area));
+                let px = shade(rule, mass / area, color.map(|c| c / area));
                 row[x * 4..x * 4 + 4].copy_from_slice(&px);
             }
             Ok(())

@@ -257,7 +257,7 @@ fn per_pixel_weights_equal_single_weight_queries() {
                     },
                 )
                 .unwrap();
-            let want = otbake::render::shade_pixel(&maps, &weights, v.mass, v.color);
+            let want = otbake::render::shade(otbake::render::composite(&maps), v.mass, v.color);
             let i = (y * w + x) * 4;
             assert_eq!(
                 &img.pixels[i..i + 4],
