@@ -46,6 +46,25 @@ pub(crate) fn mix(weights: &[f32], maps: &[Map<'_>], value: impl Fn(&Map<'_>) ->
     acc
 }
 
+/// Checks that `p` has `dim` finite coordinates and copies it into a fixed array (shared by every
+/// query of [`Blend`] and `Prepared`).
+pub(crate) fn point_arg(dim: usize, p: &[f32]) -> Result<[f32; MAX_DIM], Error> {
+    if p.len() != dim {
+        return Err(Error::PointDim {
+            expected: dim,
+            found: p.len(),
+        });
+    }
+    let mut out = [0.0; MAX_DIM];
+    for (o, &v) in out.iter_mut().zip(p) {
+        if !v.is_finite() {
+            return Err(Error::BadCoordinate);
+        }
+        *o = v;
+    }
+    Ok(out)
+}
+
 #[inline]
 pub(crate) fn at(slice: &[f32_le], i: usize) -> f32 {
     slice.get(i).map_or(0.0, |v| v.to_native())
@@ -141,20 +160,7 @@ impl<'a, 'm> Blend<'a, 'm> {
 
     /// Checks a query point's length and finiteness and copies it into a fixed array.
     pub(crate) fn point_arg(&self, p: &[f32]) -> Result<[f32; MAX_DIM], Error> {
-        if p.len() != self.dim {
-            return Err(Error::PointDim {
-                expected: self.dim,
-                found: p.len(),
-            });
-        }
-        let mut out = [0.0; MAX_DIM];
-        for (o, &v) in out.iter_mut().zip(p) {
-            if !v.is_finite() {
-                return Err(Error::BadCoordinate);
-            }
-            *o = v;
-        }
-        Ok(out)
+        point_arg(self.dim, p)
     }
 
     /// Blended position of point `i` (weights assumed checked, `i < n`).

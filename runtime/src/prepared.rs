@@ -210,20 +210,7 @@ impl Prepared<'_> {
 
     /// Checks a query point and copies it into a fixed array.
     pub(crate) fn point_arg(&self, p: &[f32]) -> Result<[f32; MAX_DIM], Error> {
-        if p.len() != self.dim {
-            return Err(Error::PointDim {
-                expected: self.dim,
-                found: p.len(),
-            });
-        }
-        let mut out = [0.0; MAX_DIM];
-        for (o, &v) in out.iter_mut().zip(p) {
-            if !v.is_finite() {
-                return Err(Error::BadCoordinate);
-            }
-            *o = v;
-        }
-        Ok(out)
+        crate::blend::point_arg(self.dim, p)
     }
 
     /// [`Blend::point`] for the prepared weights (same result, bit for bit).
