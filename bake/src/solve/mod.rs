@@ -18,12 +18,15 @@
 //! (input validation here, costs and deterministic sums in `cost`, the PRNG in `rng`) live in small
 //! modules so they can reuse them.
 
+mod auction;
 mod cost;
 mod exact;
 mod rng;
+mod sinkhorn;
 mod sliced;
 
 pub use cost::transport_cost;
+pub use sinkhorn::{MapKind, SinkhornSettings};
 
 /// Equal-size point clouds in `[0,1]^d` (point-major, `n*dim` f32 each). Uniform weights `1/n`.
 ///
@@ -42,6 +45,7 @@ pub struct Problem<'a> {
 pub enum SolverSettings {
     Exact(ExactSettings),
     Sliced(SlicedSettings),
+    Sinkhorn(SinkhornSettings),
 }
 
 /// Settings of the exact assignment solver.
@@ -114,6 +118,7 @@ impl SolverSettings {
         match self {
             SolverSettings::Exact(_) => exact::NAME,
             SolverSettings::Sliced(_) => sliced::NAME,
+            SolverSettings::Sinkhorn(_) => sinkhorn::NAME,
         }
     }
 
@@ -126,6 +131,7 @@ impl SolverSettings {
                 "sliced(iterations={},seed={},step={:?},tolerance={:?},check_directions={})",
                 s.iterations, s.seed, s.step, s.tolerance, s.check_directions
             ),
+            SolverSettings::Sinkhorn(s) => s.fingerprint(),
         }
     }
 }
@@ -216,6 +222,7 @@ pub fn solve(problem: &Problem<'_>, settings: &SolverSettings) -> Result<Solutio
     match settings {
         SolverSettings::Exact(s) => exact::solve(problem, n, s),
         SolverSettings::Sliced(s) => sliced::solve(problem, n, s),
+        SolverSettings::Sinkhorn(s) => sinkhorn::solve(problem, n, s),
     }
 }
 

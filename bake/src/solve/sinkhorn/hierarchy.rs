@@ -1,0 +1,309 @@
+//! The multiscale hierarchy of one point cloud: nested grid cells, coarsest first.
+//!
+//! Points are sorted once by their Morton code in a grid over the common bounding box of both clouds
+//! (side `S`, `BITS` bits per axis). The occupied cells of side `S / 2^ℓ` are then runs of equal code
+//! prefixes, so every level is a partition of the sorted points into contiguous ranges, each level
+//! refines the previous one, and a cell's children are a contiguous range of the next level. The last
+//! level holds the points themselves (in Morton order). Each cell carries its mass, the centroid of its
+//! points (the cluster's position in the coarse problem) and the tight bounding box of its points,
+//! which contains every descendant's centroid: the bound the kernel truncation prunes with.
+//!
+//! Both clouds use the same grid, so level ℓ means the same cell size on both sides.
+
+use rayon::prelude::*;
+
+/// One level: a partition of the (Morton-sorted) points into cells.
+#[derive(Clone, Debug)]
+pub(super) struct Level<const D: usize> {
+    /// Cell side of this level (the point level reports the side of the finest cell level).
+    pub side: f64,
+    /// Position of each cell (centroid of its points).
+    pub pos: Vec<[f64; D]>,
+    /// Mass of each cell (its number of points / n).
+    pub mass: Vec<f64>,
+    /// Tight bounding box of each cell's points.
+    pub lo: Vec<[f64; D]>,
+    pub hi: Vec<[f64; D]>,
+    /// Cells `child[c]..child[c + 1]` of the next level are the children of cell `c` (empty on the
+    /// point level).
+    pub child: Vec<u32>,
+    /// The cell of the previous level containing each cell (all 0 on level 0).
+    pub parent: Vec<u32>,
+}
+
+impl<const D: usize> Level<D> {
+    pub fn len(&self) -> usize {
+        self.pos.len()
+    }
+}
+
+/// A cloud's levels, coarsest (one cell) first, points last.
+#[derive(Clone, Debug)]
+pub(super) struct Hierarchy<const D: usize> {
+    /// `order[k]` is the original index of the k-th point in Morton order.
+    pub order: Vec<u32>,
+    pub levels: Vec<Level<D>>,
+}
+
+/// The grid both clouds share: origin and side of the cube that holds them.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Grid<const D: usize> {
+    pub origin: [f64; D],
+    pub side: f64,
+}
+
+/// Morton bits per axis: as many as fit in a u64.
+pub(super) const fn bits(d: usize) -> u32 {
+    let b = 64 / d as u32;
+    if b > 30 {
+        30
+    } else {
+        b
+    }
+}
+
+impl<const D: usize> Grid<D> {
+    /// The cube over the bounding box of both clouds.
+    pub fn new(a: &[[f64; D]], b: &[[f64; D]]) -> Self {
+        let mut lo = [f64::INFINITY; D];
+        let mut hi = [f64::NEG_INFINITY; D];
+        for p in a.iter().chain(b) {
+            for k in 0..D {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let side = (0..D).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        Self { origin: lo, side }
+    }
+
+    /// Morton code of a point (cells of side `side / 2^bits`).
+    fn code(&self, p: &[f64; D]) -> u64 {
+        let b = bits(D);
+        let cells = (1u64 << b) as f64;
+        let max = (1u64 << b) - 1;
+        let mut q = [0u64; D];
+        for k in 0..D {
+            let t = if self.side > 0.0 {
+                (p[k] - self.origin[k]) / self.side * cells
+            } else {
+                0.0
+            };
+            q[k] = (t.max(0.0) as u64).min(max);
+        }
+        let mut code = 0u64;
+        for bit in (0..b).rev() {
+            for qk in q.iter() {
+                code = (code << 1) | ((qk >> bit) & 1);
+            }
+        }
+        code
+    }
+}
+
+impl<const D: usize> Hierarchy<D> {
+    /// Sorts `points` in Morton order and builds the cell levels `0..=max_level` plus the point
+    /// level.
+    pub fn new(points: &[[f64; D]], grid: &Grid<D>, max_level: u32) -> Self {
+        let n = points.len();
+        let mut keyed: Vec<(u64, u32)> = points
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| (grid.code(p), i as u32))
+            .collect();
+        // (code, index) is a strict total order: the result does not depend on the sort's splits.
+        keyed.par_sort_unstable();
+        let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
+        let sorted: Vec<[f64; D]> = order.iter().map(|&i| points[i as usize]).collect();
+
+        // Cell starts (indices into the sorted points) of every cell level.
+        let b = bits(D);
+        let mut starts: Vec<Vec<u32>> = Vec::new();
+        for level in 0..=max_level {
+            let shift = D as u32 * (b - level);
+            let prefix = |k: usize| {
+                if shift >= 64 {
+                    0
+                } else {
+                    keyed[k].0 >> shift
+                }
+            };
+            let mut s = vec![0u32];
+            for k in 1..n {
+                if prefix(k) != prefix(k - 1) {
+                    s.push(k as u32);
+                }
+            }
+            starts.push(s);
+        }
+
+        let mut levels: Vec<Level<D>> = Vec::with_capacity(starts.len() + 1);
+        for (level, s) in starts.iter().enumerate() {
+            let side = grid.side / (1u64 << level) as f64;
+            let mut lvl = cell_level(&sorted, s, n, side);
+            // Children: the next level's cells starting inside this cell's range (nested ranges).
+            let next: Vec<u32> = match starts.get(level + 1) {
+                Some(ns) => ns.clone(),
+                None => (0..n as u32).collect(),
+            };
+            lvl.child = child_ranges(s, &next, n);
+            levels.push(lvl);
+        }
+        // Parents from the children ranges.
+        for l in 1..levels.len() {
+            let parent = parents_of(&levels[l - 1].child, levels[l].len());
+            levels[l].parent = parent;
+        }
+        let finest_side = levels.last().map_or(grid.side, |l| l.side);
+        let point_parent = match levels.last() {
+            Some(last) => parents_of(&last.child, n),
+            None => vec![0; n],
+        };
+        let inv = 1.0 / n as f64;
+        levels.push(Level {
+            side: finest_side,
+            pos: sorted.clone(),
+            mass: vec![inv; n],
+            lo: sorted.clone(),
+            hi: sorted,
+            child: Vec::new(),
+            parent: point_parent,
+        });
+        Self { order, levels }
+    }
+
+    /// Index of the point level.
+    pub fn point_level(&self) -> usize {
+        self.levels.len() - 1
+    }
+}
+
+/// Centroid, mass and box of each cell `starts[c]..starts[c + 1]` of the sorted points.
+fn cell_level<const D: usize>(sorted: &[[f64; D]], starts: &[u32], n: usize, side: f64) -> Level<D> {
+    let m = starts.len();
+    let cells: Vec<([f64; D], f64, [f64; D], [f64; D])> = (0..m)
+        .into_par_iter()
+        .map(|c| {
+            let a = starts[c] as usize;
+            let b = starts.get(c + 1).map_or(n, |&e| e as usize);
+            let mut sum = [0.0; D];
+            let mut lo = [f64::INFINITY; D];
+            let mut hi = [f64::NEG_INFINITY; D];
+            for p in &sorted[a..b] {
+                for k in 0..D {
+                    sum[k] += p[k];
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            let count = (b - a) as f64;
+            let mut pos = [0.0; D];
+            for k in 0..D {
+                // Clamp: the rounded mean of points can leave their box by an ulp.
+                pos[k] = (sum[k] / count).clamp(lo[k], hi[k]);
+            }
+            (pos, count / n as f64, lo, hi)
+        })
+        .collect();
+    Level {
+        side,
+        pos: cells.iter().map(|c| c.0).collect(),
+        mass: cells.iter().map(|c| c.1).collect(),
+        lo: cells.iter().map(|c| c.2).collect(),
+        hi: cells.iter().map(|c| c.3).collect(),
+        child: Vec::new(),
+        parent: vec![0; m],
+    }
+}
+
+/// For nested partitions given by their start indices, the range of `next` cells inside each cell.
+fn child_ranges(starts: &[u32], next: &[u32], n: usize) -> Vec<u32> {
+    let mut child = Vec::with_capacity(starts.len() + 1);
+    let mut j = 0usize;
+    for c in 0..starts.len() {
+        child.push(j as u32);
+        let end = starts.get(c + 1).map_or(n as u32, |&e| e);
+        while j < next.len() && next[j] < end {
+            j += 1;
+        }
+    }
+    child.push(next.len() as u32);
+    child
+}
+
+/// Inverts child ranges into a parent index per child.
+fn parents_of(child: &[u32], len: usize) -> Vec<u32> {
+    let mut parent = vec![0u32; len];
+    for c in 0..child.len() - 1 {
+        for p in &mut parent[child[c] as usize..child[c + 1] as usize] {
+            *p = c as u32;
+        }
+    }
+    parent
+}
+
+/// Number of occupied cells of each level `0..=bits(D)` (for choosing the finest cell level).
+pub(super) fn cell_counts<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -> Vec<usize> {
+    let mut codes: Vec<u64> = points.par_iter().map(|p| grid.code(p)).collect();
+    codes.par_sort_unstable();
+    let b = bits(D);
+    (0..=b)
+        .map(|level| {
+            let shift = D as u32 * (b - level);
+            if shift >= 64 {
+                return 1;
+            }
+            1 + codes
+                .windows(2)
+                .filter(|w| w[0] >> shift != w[1] >> shift)
+                .count()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_nest_and_conserve_mass() {
+        let pts: Vec<[f64; 2]> = (0..500)
+            .map(|i| {
+                let t = i as f64 * 0.618_033_988_75;
+                [t.fract(), (t * 7.3).fract().powi(2)]
+            })
+            .collect();
+        let grid = Grid::new(&pts, &pts);
+        let h = Hierarchy::new(&pts, &grid, 5);
+        assert_eq!(h.levels.len(), 7);
+        assert_eq!(h.levels[0].len(), 1);
+        for (l, lvl) in h.levels.iter().enumerate() {
+            let mass: f64 = lvl.mass.iter().sum();
+            assert!((mass - 1.0).abs() < 1e-12, "level {l} mass {mass}");
+            if l + 1 < h.levels.len() {
+                let next = &h.levels[l + 1];
+                assert_eq!(*lvl.child.last().unwrap() as usize, next.len());
+                for c in 0..lvl.len() {
+                    let m: f64 = (lvl.child[c]..lvl.child[c + 1])
+                        .map(|k| next.mass[k as usize])
+                        .sum();
+                    assert!((m - lvl.mass[c]).abs() < 1e-12);
+                    for k in lvl.child[c]..lvl.child[c + 1] {
+                        assert_eq!(next.parent[k as usize] as usize, c);
+                        for a in 0..2 {
+                            assert!(next.pos[k as usize][a] >= lvl.lo[c][a]);
+                            assert!(next.pos[k as usize][a] <= lvl.hi[c][a]);
+                        }
+                    }
+                }
+            }
+        }
+        let mut seen = h.order.clone();
+        seen.sort_unstable();
+        assert!(seen.iter().enumerate().all(|(i, &o)| i as u32 == o));
+        let counts = cell_counts(&pts, &grid);
+        for l in 0..=5 {
+            assert_eq!(counts[l], h.levels[l].len());
+        }
+    }
+}

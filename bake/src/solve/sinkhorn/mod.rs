@@ -1,0 +1,674 @@
+//! Multiscale, log-stabilized, ε-scaling Sinkhorn on truncated sparse kernels, with the map
+//! refined to a one-to-one matching.
+//!
+//! The method follows Schmitzer 2019 ("Stabilized sparse scaling algorithms for entropy regularized
+//! transport problems") and Feydy's multiscale GeomLoss, with one change that matters for maps:
+//! every ε stage is iterated until its marginal error is below the tolerance (GeomLoss runs one
+//! iteration per ε and its maps under-transport, NOTES.md).
+//!
+//! * **ε-scaling.** The blur (ε = blur², cost |x − y|²) starts at the side of the cube holding both
+//!   clouds and shrinks by `scaling` per stage down to the final blur.
+//! * **Coarse to fine.** Both clouds are sorted into a shared grid hierarchy ([`hierarchy`]); a stage
+//!   at blur b runs on the coarsest level whose cells are no larger than b (cluster centroids
+//!   weighted by their mass), and on the points themselves once the cells would be nearly as many as
+//!   the points. Moving to a finer level extrapolates the target potential by a soft c-transform
+//!   against the coarse source potential, restricted to the coarse kernel's support.
+//! * **Truncation.** Each stage keeps only the pairs within θ·ε of their row's or column's best
+//!   reduced cost, found exactly by branch and bound over the hierarchy ([`kernel`]): memory and time
+//!   per iteration are linear in n for a bounded blur/spacing ratio.
+//! * **Stabilization.** The kernel is built with the current potentials absorbed (its entries are in
+//!   (0, 1]); the iterations update f64 scalings u, v, which are absorbed into the potentials at the
+//!   end of every stage (and earlier if they drift far from the masses).
+//! * **Map.** The barycentric projection T(x_i) = Σ_j π_ij y_j / Σ_j π_ij of the final plan, or, with
+//!   `map = "assignment"` (the default), a one-to-one matching found by a sparse ε-scaling auction on
+//!   the final kernel's support started from the Sinkhorn potentials ([`super::auction`]): every mapped
+//!   point is then a target sample, and the matching is within n·ε_end of the best the support allows.
+//!
+//! Failure is never silent: the final stage must reach the tolerance (else
+//! [`SolveError::NotConverged`]), a non-finite value is an error, and an auction that cannot match
+//! every row on the kernel's support falls back to the barycentric map, which the report states.
+//!
+//! Determinism: every row and column update reads only the previous half-step's values and is
+//! computed in a fixed order, partial sums use fixed chunks, the kernel is built in fixed chunks and
+//! the auction is sequential: the output does not depend on the thread count.
+
+mod hierarchy;
+mod kernel;
+
+use super::auction::{auction, Graph};
+use super::{Problem, Report, Solution, SolveError};
+use hierarchy::{Grid, Hierarchy};
+use kernel::{sq, Kernel};
+use rayon::prelude::*;
+
+pub(super) const NAME: &str = "sinkhorn";
+
+/// How the map is read off the final plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapKind {
+    /// One-to-one: each source point goes to a distinct target sample (sparse auction refinement).
+    Assignment,
+    /// Barycentric projection of the entropic plan: smooth, slightly contracted (by about the blur).
+    Barycentric,
+}
+
+impl MapKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            MapKind::Assignment => "assignment",
+            MapKind::Barycentric => "barycentric",
+        }
+    }
+}
+
+/// Settings of the Sinkhorn solver (manifest `[solver] kind = "sinkhorn"`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SinkhornSettings {
+    /// Final blur (ε = blur²) in coordinate units. `None`: `blur_spacing` × the mean point
+    /// spacing side·n^(−1/d) of the cube holding both clouds.
+    pub blur: Option<f64>,
+    /// Final blur as a multiple of the mean point spacing, when `blur` is not given.
+    pub blur_spacing: f64,
+    /// Blur ratio between consecutive stages, in (0, 1).
+    pub scaling: f64,
+    /// Marginal error (L1, total mass 1) each stage must reach.
+    pub tolerance: f64,
+    /// Iterations allowed per stage. Intermediate stages that hit it go on (the next stage starts
+    /// from their potentials, and the report counts them); the final stage must converge.
+    pub max_iterations: u32,
+    /// Truncation θ: pairs more than θ·ε above their row's and column's best are dropped (their
+    /// kernel entries are below e^−θ of the best).
+    pub truncate: f64,
+    /// How the map is read off the plan.
+    pub map: MapKind,
+}
+
+impl Default for SinkhornSettings {
+    fn default() -> Self {
+        Self {
+            blur: None,
+            blur_spacing: 1.0,
+            scaling: 0.5,
+            tolerance: 1e-3,
+            max_iterations: 2000,
+            truncate: 12.0,
+            map: MapKind::Assignment,
+        }
+    }
+}
+
+impl SinkhornSettings {
+    pub(super) fn fingerprint(&self) -> String {
+        format!(
+            "sinkhorn(blur={:?},blur_spacing={:?},scaling={:?},tolerance={:?},max_iterations={},truncate={:?},map={})",
+            self.blur,
+            self.blur_spacing,
+            self.scaling,
+            self.tolerance,
+            self.max_iterations,
+            self.truncate,
+            self.map.name()
+        )
+    }
+
+    fn check(&self) -> Result<(), SolveError> {
+        let bad = |field: &'static str, reason: &str| {
+            Err(SolveError::InvalidSettings {
+                solver: NAME,
+                field,
+                reason: reason.to_string(),
+            })
+        };
+        if let Some(b) = self.blur {
+            if !(b.is_finite() && b > 0.0) {
+                return bad("blur", "must be a positive number (coordinate units)");
+            }
+        }
+        if !(self.blur_spacing.is_finite() && self.blur_spacing > 0.0) {
+            return bad("blur_spacing", "must be a positive number");
+        }
+        if !(self.scaling > 0.0 && self.scaling < 1.0) {
+            return bad("scaling", "must be in (0, 1); 0.5 halves the blur per stage");
+        }
+        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
+            return bad("tolerance", "must be in (0, 1) (L1 marginal error, total mass 1)");
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", "must be at least 1");
+        }
+        if !(self.truncate.is_finite() && self.truncate >= 1.0) {
+            return bad("truncate", "must be at least 1 (12 keeps entries above e^-12)");
+        }
+        Ok(())
+    }
+}
+
+/// Largest kernel, in pairs per point, before the solver refuses: beyond it the blur is far above
+/// the point spacing or many points coincide, and memory would no longer be linear in n.
+const MAX_PAIRS_PER_POINT: usize = 4096;
+
+/// Scalings beyond this factor of the masses are absorbed into the potentials mid-stage.
+const ABSORB: f64 = 1e30;
+
+pub(super) fn solve(
+    problem: &Problem<'_>,
+    n: usize,
+    settings: &SinkhornSettings,
+) -> Result<Solution, SolveError> {
+    settings.check()?;
+    if n >= u32::MAX as usize {
+        return Err(SolveError::TooLarge {
+            solver: NAME,
+            n,
+            max: u32::MAX as usize - 1,
+            hint: "split the point cloud: point indices are 32-bit",
+        });
+    }
+    match problem.dim {
+        1 => run::<1>(problem, n, settings),
+        2 => run::<2>(problem, n, settings),
+        3 => run::<3>(problem, n, settings),
+        4 => run::<4>(problem, n, settings),
+        d => Err(SolveError::InvalidSettings {
+            solver: NAME,
+            field: "dim",
+            reason: format!("sinkhorn handles 1 to 4 dimensions (got {d}); use kind = \"sliced\""),
+        }),
+    }
+}
+
+/// What one stage did (for the report).
+struct StageLog {
+    iterations: u32,
+    converged: bool,
+    error: f64,
+}
+
+/// The solver's state between stages: the level and the potentials on it.
+struct State {
+    level: usize,
+    eps: f64,
+    kernel: Kernel,
+    /// Scalings of the current kernel.
+    u: Vec<f64>,
+    v: Vec<f64>,
+    /// Target potential the kernel was built with.
+    g: Vec<f64>,
+}
+
+fn run<const D: usize>(
+    problem: &Problem<'_>,
+    n: usize,
+    settings: &SinkhornSettings,
+) -> Result<Solution, SolveError> {
+    let pts = |data: &[f32]| -> Vec<[f64; D]> {
+        data.par_chunks_exact(D)
+            .map(|p| std::array::from_fn(|k| f64::from(p[k])))
+            .collect()
+    };
+    let (xs, ys) = (pts(problem.source), pts(problem.target));
+    let grid = Grid::new(&xs, &ys);
+    let side = grid.side;
+    let spacing = side * (n as f64).powf(-1.0 / D as f64);
+    let blur_end = settings.blur.unwrap_or(settings.blur_spacing * spacing);
+
+    if side == 0.0 {
+        // Every point coincides: any map is optimal.
+        return Ok(finish_identity(problem, n));
+    }
+
+    // Cell levels: as fine as possible while both clouds have at most n/4 cells.
+    let (cs, ct) = (
+        hierarchy::cell_counts(&xs, &grid),
+        hierarchy::cell_counts(&ys, &grid),
+    );
+    let max_level = (0..cs.len())
+        .take_while(|&l| cs[l] <= (n / 4).max(1) && ct[l] <= (n / 4).max(1))
+        .last()
+        .unwrap_or(0) as u32;
+    let hs = Hierarchy::new(&xs, &grid, max_level);
+    let ht = Hierarchy::new(&ys, &grid, max_level);
+    let point_level = hs.point_level();
+
+    // The blur schedule and the level of each stage.
+    let mut blurs = Vec::new();
+    let mut b = side;
+    while b > blur_end {
+        blurs.push(b);
+        b *= settings.scaling;
+    }
+    blurs.push(blur_end);
+    let level_of = |blur: f64| -> usize {
+        (0..point_level)
+            .find(|&l| hs.levels[l].side <= blur)
+            .unwrap_or(point_level)
+    };
+
+    let mut logs: Vec<StageLog> = Vec::with_capacity(blurs.len());
+    let mut state: Option<State> = None;
+    let mut rebuilds = 0u32;
+    let mut max_pairs = 0usize;
+    for (stage, &blur) in blurs.iter().enumerate() {
+        let eps = blur * blur;
+        let level = level_of(blur).max(state.as_ref().map_or(0, |s| s.level));
+        // Target potential on the new level.
+        let g = match &state {
+            None => vec![0.0; ht.levels[level].len()],
+            Some(st) => {
+                let g_old = absorbed(&st.g, &st.v, &ht.levels[st.level].mass, st.eps);
+                if level == st.level {
+                    g_old
+                } else {
+                    let f_old = absorbed(&st.kernel.f, &st.u, &hs.levels[st.level].mass, st.eps);
+                    extrapolate(&hs, &ht, st.level, level, &st.kernel, &f_old, eps)
+                }
+            }
+        };
+        let kernel = kernel::build(&hs, &ht, level, &g, eps, settings.truncate);
+        check_pairs(&kernel, hs.levels[level].len(), blur, spacing)?;
+        max_pairs = max_pairs.max(kernel.pairs());
+        let (a, bm) = (&hs.levels[level].mass, &ht.levels[level].mass);
+        let mut st = State {
+            level,
+            eps,
+            kernel,
+            u: a.clone(),
+            v: bm.clone(),
+            g,
+        };
+        let log = iterate(&hs, &ht, &mut st, settings, &mut rebuilds)?;
+        let last = stage + 1 == blurs.len();
+        if last && !log.converged {
+            let report = report_of(
+                problem, n, settings, &logs, &log, blur_end, rebuilds, max_pairs, None,
+            );
+            let e = log.error;
+            return Err(SolveError::NotConverged {
+                solver: NAME,
+                residual: e,
+                threshold: settings.tolerance,
+                iterations: total_iterations(&logs) + log.iterations,
+                hint: format!(
+                    "the final stage (blur {blur_end:e}) did not reach the marginal tolerance in \
+                     max_iterations = {}: raise max_iterations, raise blur (it is {:.3} x the point \
+                     spacing) or loosen tolerance",
+                    settings.max_iterations,
+                    blur_end / spacing
+                ),
+                report: Box::new(report),
+            });
+        }
+        logs.push(log);
+        state = Some(st);
+    }
+    let st = state.expect("at least one stage runs");
+    debug_assert_eq!(st.level, point_level);
+
+    // The map.
+    let dim = D;
+    let (mapped_sorted, refine) = match settings.map {
+        MapKind::Barycentric => (barycentric(&st, &ht), None),
+        MapKind::Assignment => {
+            let g = absorbed(&st.g, &st.v, &ht.levels[point_level].mass, st.eps);
+            match refine_assignment(&hs, &ht, &st, g, side) {
+                Ok((x, info)) => {
+                    let y = &ht.levels[point_level].pos;
+                    (x.iter().map(|&j| y[j as usize]).collect(), Some(info))
+                }
+                Err(info) => (barycentric(&st, &ht), Some(info)),
+            }
+        }
+    };
+    // Back to the caller's order.
+    let mut mapped = vec![0f32; n * dim];
+    for (k, &orig) in hs.order.iter().enumerate() {
+        let o = orig as usize;
+        for a in 0..dim {
+            mapped[o * dim + a] = mapped_sorted[k][a] as f32;
+        }
+    }
+    super::check_finite("mapped", dim, &mapped)?;
+    let assignment = match &refine {
+        Some(info) if info.unassigned == 0 => Some(info.to_original(&hs, &ht)),
+        _ => None,
+    };
+    let last = logs.pop().expect("a stage ran");
+    let mut report = report_of(
+        problem,
+        n,
+        settings,
+        &logs,
+        &last,
+        blur_end,
+        rebuilds,
+        max_pairs,
+        refine.as_ref(),
+    );
+    report.cost = super::transport_cost(dim, problem.source, &mapped);
+    Ok(Solution {
+        mapped,
+        assignment,
+        report,
+    })
+}
+
+/// Potentials with the scalings absorbed: p + ε log(s / mass).
+fn absorbed(p: &[f64], s: &[f64], mass: &[f64], eps: f64) -> Vec<f64> {
+    p.par_iter()
+        .zip(s)
+        .zip(mass)
+        .map(|((&p, &s), &m)| p + eps * (s / m).ln())
+        .collect()
+}
+
+/// Target potential on level `to` from the source potential `f` on level `from`: the soft
+/// c-transform g(y) = −ε log Σ_I a_I exp((f_I − C(x_I, y))/ε) over the source cells the coarse
+/// kernel links to y's ancestor.
+fn extrapolate<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    from: usize,
+    to: usize,
+    kernel: &Kernel,
+    f: &[f64],
+    eps: f64,
+) -> Vec<f64> {
+    let ys = &ht.levels[to];
+    let (xs, a) = (&hs.levels[from].pos, &hs.levels[from].mass);
+    (0..ys.len())
+        .into_par_iter()
+        .map(|j| {
+            let mut anc = j;
+            for l in (from + 1..=to).rev() {
+                anc = ht.levels[l].parent[anc] as usize;
+            }
+            let rows = &kernel.row[kernel.col_ptr[anc]..kernel.col_ptr[anc + 1]];
+            let y = &ys.pos[j];
+            let mut m = f64::NEG_INFINITY;
+            for &i in rows {
+                let i = i as usize;
+                m = m.max(f[i] - sq(&xs[i], y) + eps * a[i].ln());
+            }
+            let mut s = 0.0;
+            for &i in rows {
+                let i = i as usize;
+                s += ((f[i] - sq(&xs[i], y) + eps * a[i].ln() - m) / eps).exp();
+            }
+            -(m + eps * s.ln())
+        })
+        .collect()
+}
+
+/// Refuses kernels whose size is no longer linear in n.
+fn check_pairs(kernel: &Kernel, rows: usize, blur: f64, spacing: f64) -> Result<(), SolveError> {
+    let pairs = kernel.pairs();
+    if pairs > MAX_PAIRS_PER_POINT * rows.max(1) {
+        return Err(SolveError::InvalidSettings {
+            solver: NAME,
+            field: "blur",
+            reason: format!(
+                "the truncated kernel at blur {blur:e} ({:.2} x the point spacing) keeps {pairs} \
+                 pairs for {rows} points (limit {MAX_PAIRS_PER_POINT} per point): many points \
+                 coincide or the blur is far above the spacing; lower blur/truncate",
+                blur / spacing
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Rows per parallel work item.
+const CHUNK: usize = 2048;
+
+/// Sinkhorn iterations of one stage until the row marginal error (after a column update) is below
+/// the tolerance or the iteration cap is hit.
+fn iterate<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    st: &mut State,
+    settings: &SinkhornSettings,
+    rebuilds: &mut u32,
+) -> Result<StageLog, SolveError> {
+    let (a, b) = (
+        hs.levels[st.level].mass.clone(),
+        ht.levels[st.level].mass.clone(),
+    );
+    let mut error = f64::INFINITY;
+    let mut it = 0u32;
+    while it < settings.max_iterations {
+        it += 1;
+        // Row update; its error term is the row marginal of the previous column update.
+        let (kern, v) = (&st.kernel, &st.v);
+        let errs: Vec<f64> = st
+            .u
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, uc)| {
+                let mut e = 0.0;
+                for (k, u) in uc.iter_mut().enumerate() {
+                    let i = c * CHUNK + k;
+                    let mut s = 0.0;
+                    for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
+                        s += f64::from(kern.k[p]) * v[kern.col[p] as usize];
+                    }
+                    e += (*u * s - a[i]).abs();
+                    *u = a[i] / s;
+                }
+                e
+            })
+            .collect();
+        error = errs.iter().sum();
+        // Column update.
+        let u = &st.u;
+        let drift: Vec<bool> = st
+            .v
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, vc)| {
+                let mut far = false;
+                for (k, v) in vc.iter_mut().enumerate() {
+                    let j = c * CHUNK + k;
+                    let mut t = 0.0;
+                    for p in kern.col_ptr[j]..kern.col_ptr[j + 1] {
+                        t += f64::from(kern.kt[p]) * u[kern.row[p] as usize];
+                    }
+                    *v = b[j] / t;
+                    let r = *v / b[j];
+                    far |= !(r < ABSORB && r > 1.0 / ABSORB);
+                }
+                far
+            })
+            .collect();
+        if !error.is_finite() || st.v.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NotConverged {
+                solver: NAME,
+                residual: error,
+                threshold: settings.tolerance,
+                iterations: it,
+                hint: format!(
+                    "a scaling became non-finite at blur {:e} (level {}); this is a bug: please \
+                     report the inputs",
+                    st.eps.sqrt(),
+                    st.level
+                ),
+                report: Box::new(Report {
+                    solver: NAME,
+                    cost: f64::NAN,
+                    iterations: it,
+                    converged: false,
+                    residual: error,
+                    detail: "non-finite scaling".into(),
+                }),
+            });
+        }
+        if it > 1 && error <= settings.tolerance {
+            return Ok(StageLog {
+                iterations: it,
+                converged: true,
+                error,
+            });
+        }
+        if drift.iter().any(|&d| d) {
+            // Absorb and rebuild the kernel around the new potentials.
+            let g = absorbed(&st.g, &st.v, &b, st.eps);
+            st.kernel = kernel::build(hs, ht, st.level, &g, st.eps, settings.truncate);
+            st.g = g;
+            st.u = a.clone();
+            st.v = b.clone();
+            *rebuilds += 1;
+        }
+    }
+    Ok(StageLog {
+        iterations: it,
+        converged: false,
+        error,
+    })
+}
+
+/// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level.
+fn barycentric<const D: usize>(st: &State, ht: &Hierarchy<D>) -> Vec<[f64; D]> {
+    let y = &ht.levels[st.level].pos;
+    let kern = &st.kernel;
+    (0..kern.row_ptr.len() - 1)
+        .into_par_iter()
+        .map(|i| {
+            let mut acc = [0.0; D];
+            let mut w = 0.0;
+            for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
+                let j = kern.col[p] as usize;
+                let kv = f64::from(kern.k[p]) * st.v[j];
+                w += kv;
+                for a in 0..D {
+                    acc[a] += kv * y[j][a];
+                }
+            }
+            acc.map(|s| s / w)
+        })
+        .collect()
+}
+
+/// What the one-to-one refinement did.
+struct RefineInfo {
+    x: Vec<u32>,
+    unassigned: usize,
+    phases: u32,
+    bids: u64,
+}
+
+impl RefineInfo {
+    /// The matching in the caller's indices.
+    fn to_original<const D: usize>(&self, hs: &Hierarchy<D>, ht: &Hierarchy<D>) -> Vec<u32> {
+        let mut out = vec![0u32; self.x.len()];
+        for (k, &j) in self.x.iter().enumerate() {
+            out[hs.order[k] as usize] = ht.order[j as usize];
+        }
+        out
+    }
+}
+
+/// Final auction ε as a fraction of the final Sinkhorn ε.
+const AUCTION_EPS_END: f64 = 1e-4;
+
+/// Sparse auction on the final kernel's support, started from the Sinkhorn target potential.
+fn refine_assignment<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    st: &State,
+    mut v: Vec<f64>,
+    side: f64,
+) -> Result<(Vec<u32>, RefineInfo), RefineInfo> {
+    let (x, y) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
+    let graph = Graph {
+        row_ptr: &st.kernel.row_ptr,
+        col: &st.kernel.col,
+        cols: y.len(),
+        cost: |i: usize, j: usize| sq(&x[i], &y[j]),
+    };
+    let m = auction(
+        &graph,
+        &mut v,
+        st.eps,
+        st.eps * AUCTION_EPS_END,
+        4.0,
+        side * side * D as f64,
+    );
+    let info = RefineInfo {
+        x: m.x.clone(),
+        unassigned: m.unassigned,
+        phases: m.phases,
+        bids: m.bids,
+    };
+    if m.unassigned == 0 {
+        Ok((m.x, info))
+    } else {
+        Err(info)
+    }
+}
+
+fn total_iterations(logs: &[StageLog]) -> u32 {
+    logs.iter().map(|l| l.iterations).sum()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn report_of(
+    problem: &Problem<'_>,
+    n: usize,
+    settings: &SinkhornSettings,
+    earlier: &[StageLog],
+    last: &StageLog,
+    blur_end: f64,
+    rebuilds: u32,
+    max_pairs: usize,
+    refine: Option<&RefineInfo>,
+) -> Report {
+    let capped = earlier.iter().filter(|l| !l.converged).count();
+    let iterations = total_iterations(earlier) + last.iterations;
+    let (map, refined_ok) = match (settings.map, refine) {
+        (MapKind::Barycentric, _) => ("barycentric".to_string(), true),
+        (MapKind::Assignment, Some(r)) if r.unassigned == 0 => (
+            format!("assignment (auction: {} phases, {} bids)", r.phases, r.bids),
+            true,
+        ),
+        (MapKind::Assignment, Some(r)) => (
+            format!(
+                "barycentric FALLBACK: the auction left {} of {n} rows unmatched on the kernel \
+                 support ({} phases, {} bids)",
+                r.unassigned, r.phases, r.bids
+            ),
+            false,
+        ),
+        (MapKind::Assignment, None) => ("none".to_string(), false),
+    };
+    Report {
+        solver: NAME,
+        // Set by the caller once the map exists (NaN in the reports of failed runs).
+        cost: f64::NAN,
+        iterations,
+        converged: last.converged && refined_ok,
+        residual: last.error,
+        detail: format!(
+            "sinkhorn: n={n}, dim={}, final blur={blur_end:e}, stages={} ({capped} capped before \
+             the last), iterations={iterations}, kernel rebuilds={rebuilds}, max pairs={max_pairs}, \
+             final marginal error={:e}, map={map}",
+            problem.dim,
+            earlier.len() + 1,
+            last.error
+        ),
+    }
+}
+
+/// All points coincide: the identity matching is optimal.
+fn finish_identity(problem: &Problem<'_>, n: usize) -> Solution {
+    Solution {
+        mapped: problem.target.to_vec(),
+        assignment: Some((0..n as u32).collect()),
+        report: Report {
+            solver: NAME,
+            cost: 0.0,
+            iterations: 0,
+            converged: true,
+            residual: 0.0,
+            detail: format!("sinkhorn: n={n}, all points coincide: identity matching"),
+        },
+    }
+}
