@@ -18,23 +18,68 @@ fn main() {
     .unwrap();
     let target = importance_sample(&grid, n, 1).unwrap();
     let source = proxy_points(&ProxyShape::DEFAULT_GAUSSIAN, 2, n, 0).unwrap();
-    let p = Problem { dim: 2, source: &source, target: &target };
+    let p = Problem {
+        dim: 2,
+        source: &source,
+        target: &target,
+    };
     let mut s = SinkhornSettings::default();
     s.blur_spacing = blur_spacing;
-    for map in [MapKind::Barycentric, MapKind::Assignment] {
+    if let Some(o) = args.get(5) {
+        s.overrelaxation = o.parse().unwrap();
+    }
+    let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f64>().unwrap());
+    if let Some(v) = env("SK_TOL") {
+        s.tolerance = v;
+    }
+    if let Some(v) = env("SK_THETA") {
+        s.truncate = v;
+    }
+    let maps: Vec<MapKind> = if std::env::var("SK_BARY").is_ok() {
+        vec![MapKind::Barycentric, MapKind::Assignment]
+    } else {
+        vec![MapKind::Assignment]
+    };
+    for map in maps {
         s.map = map;
         let t = Instant::now();
         let r = solve(&p, &SolverSettings::Sinkhorn(s.clone())).unwrap();
-        println!("{:?} {:.3}s cost {:.6e} {}", map, t.elapsed().as_secs_f64(), r.report.cost, r.report.detail);
+        println!(
+            "{:?} {:.3}s cost {:.6e} {}",
+            map,
+            t.elapsed().as_secs_f64(),
+            r.report.cost,
+            r.report.detail
+        );
         if exact {
             let t = Instant::now();
             let e = solve(&p, &SolverSettings::Exact(ExactSettings { max_n: 20000 })).unwrap();
             let var = {
-                let m: Vec<f64> = (0..2).map(|k| target.iter().skip(k).step_by(2).map(|&v| v as f64).sum::<f64>() / n as f64).collect();
-                target.chunks(2).map(|q| (0..2).map(|k| (q[k] as f64 - m[k]).powi(2)).sum::<f64>()).sum::<f64>() / n as f64
+                let m: Vec<f64> = (0..2)
+                    .map(|k| {
+                        target
+                            .iter()
+                            .skip(k)
+                            .step_by(2)
+                            .map(|&v| v as f64)
+                            .sum::<f64>()
+                            / n as f64
+                    })
+                    .collect();
+                target
+                    .chunks(2)
+                    .map(|q| (0..2).map(|k| (q[k] as f64 - m[k]).powi(2)).sum::<f64>())
+                    .sum::<f64>()
+                    / n as f64
             };
             let uvp = 100.0 * transport_cost(2, &e.mapped, &r.mapped) / var;
-            println!("  exact {:.3}s cost {:.6e} ratio {:.4} uvp {:.3}%", t.elapsed().as_secs_f64(), e.report.cost, r.report.cost / e.report.cost, uvp);
+            println!(
+                "  exact {:.3}s cost {:.6e} ratio {:.4} uvp {:.3}%",
+                t.elapsed().as_secs_f64(),
+                e.report.cost,
+                r.report.cost / e.report.cost,
+                uvp
+            );
         }
     }
 }

@@ -15,7 +15,7 @@
 const NONE: u32 = u32::MAX;
 
 /// Row processings allowed per phase, per row.
-const BUDGET_PER_ROW: u64 = 200;
+const BUDGET_PER_ROW: u64 = 50;
 
 /// The candidate graph and its costs.
 pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64> {
@@ -30,6 +30,8 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64> {
 pub(crate) struct Matching {
     /// Row → column, `u32::MAX` for rows left unassigned when a phase ran out of budget.
     pub x: Vec<u32>,
+    /// Column → row, `u32::MAX` for free columns.
+    pub y: Vec<u32>,
     pub unassigned: usize,
     pub phases: u32,
     pub bids: u64,
@@ -101,6 +103,7 @@ pub(crate) fn auction<C: Fn(usize, usize) -> f64>(
     };
     Matching {
         x,
+        y,
         unassigned,
         phases,
         bids,

@@ -282,12 +282,40 @@ where
     let free_after_reduction = free.len();
 
     // Shortest augmenting paths for the remaining free rows.
+    let augmentations = augment(n, cost, &free, &mut x, &mut y, &mut v);
+    debug_assert!(x.iter().all(|&j| j != NONE));
+    Lap {
+        x,
+        v,
+        phases,
+        row_reductions,
+        free_after_reduction,
+        augmentations,
+    }
+}
+
+/// Completes a partial assignment: one Dijkstra-like shortest augmenting path (over all n columns)
+/// per free row, then the flip along the path. With duals that certify the partial assignment the
+/// result is optimal (JV); with merely approximate duals (the sparse Sinkhorn refinement, whose
+/// duals are ε-optimal only on its candidate graph) it is still a perfect matching, found in
+/// O(n) per scan step. Returns the number of paths.
+pub(crate) fn augment<C>(
+    n: usize,
+    cost: &C,
+    free: &[usize],
+    x: &mut [u32],
+    y: &mut [u32],
+    v: &mut [f64],
+) -> u32
+where
+    C: Fn(usize, usize) -> f64,
+{
     let mut d = vec![0.0; n];
     let mut cols: Vec<usize> = (0..n).collect();
     let mut pred = vec![0usize; n];
     let mut augmentations = 0u32;
-    for &start in &free {
-        let end = find_path(n, cost, start, &y, &mut v, &mut d, &mut cols, &mut pred);
+    for &start in free {
+        let end = find_path(n, cost, start, y, v, &mut d, &mut cols, &mut pred);
         let mut j = end;
         loop {
             let i = pred[j];
@@ -301,15 +329,7 @@ where
         }
         augmentations += 1;
     }
-    debug_assert!(x.iter().all(|&j| j != NONE));
-    Lap {
-        x,
-        v,
-        phases,
-        row_reductions,
-        free_after_reduction,
-        augmentations,
-    }
+    augmentations
 }
 
 /// Unassigns every row whose reduced cost c(i, x_i) − v(x_i) exceeds its minimum over all columns

@@ -179,7 +179,12 @@ impl<const D: usize> Hierarchy<D> {
 }
 
 /// Centroid, mass and box of each cell `starts[c]..starts[c + 1]` of the sorted points.
-fn cell_level<const D: usize>(sorted: &[[f64; D]], starts: &[u32], n: usize, side: f64) -> Level<D> {
+fn cell_level<const D: usize>(
+    sorted: &[[f64; D]],
+    starts: &[u32],
+    n: usize,
+    side: f64,
+) -> Level<D> {
     let m = starts.len();
     let cells: Vec<([f64; D], f64, [f64; D], [f64; D])> = (0..m)
         .into_par_iter()

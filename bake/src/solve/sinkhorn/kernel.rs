@@ -56,34 +56,145 @@ pub(super) fn sq<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
     s
 }
 
-/// Squared distance from a point to a box (0 inside).
-#[inline]
-fn sq_to_box<const D: usize>(x: &[f64; D], lo: &[f64; D], hi: &[f64; D]) -> f64 {
-    let mut s = 0.0;
-    for k in 0..D {
-        let d = (lo[k] - x[k]).max(x[k] - hi[k]).max(0.0);
-        s += d * d;
-    }
-    s
+/// Affine lower bounds of h = |y|² − potential over the descendants (at the search level) of every
+/// cell above it: h_j ≥ α + β·y_j for every descendant j, with β fitted by least squares (any β is
+/// valid; a good one makes the bound tight to second order) and α the exact minimum of h_j − β·y_j.
+///
+/// Then for a query x, C(x, y_j) − pot_j = |x|² + h_j − 2x·y_j ≥ |x|² + α + min over the cell's box
+/// of (β − 2x)·y: a bound whose slack grows with the *curvature* of h over the cell, not with its
+/// gradient, so cells far from the minimizer are pruned near the top of the hierarchy even when the
+/// potential varies a lot (it does: g ≈ |y|² minus a convex function).
+struct Bounds<const D: usize> {
+    beta: Vec<Vec<[f64; D]>>,
+    alpha: Vec<Vec<f64>>,
 }
 
-/// Max of a potential over the cells of every level down to `level` (bottom-up).
-fn max_pyramid<const D: usize>(h: &Hierarchy<D>, level: usize, pot: &[f64]) -> Vec<Vec<f64>> {
-    let mut out: Vec<Vec<f64>> = vec![Vec::new(); level + 1];
-    out[level] = pot.to_vec();
+fn bounds<const D: usize>(h: &Hierarchy<D>, level: usize, pot: &[f64]) -> Bounds<D> {
+    let pos = &h.levels[level].pos;
+    let hv: Vec<f64> = pos
+        .par_iter()
+        .zip(pot)
+        .map(|(y, p)| y.iter().map(|v| v * v).sum::<f64>() - p)
+        .collect();
+    let mut beta: Vec<Vec<[f64; D]>> = vec![Vec::new(); level];
+    let mut alpha: Vec<Vec<f64>> = vec![Vec::new(); level];
+    // Descendant ranges (into the search level) of the cells of the level below the current one.
+    let mut below: Option<Vec<(u32, u32)>> = None;
     for l in (0..level).rev() {
-        let lvl: &Level<D> = &h.levels[l];
-        let below = &out[l + 1];
-        // When `level` is the point level, the children of the last cell level are points.
-        out[l] = (0..lvl.len())
-            .map(|c| {
-                below[lvl.child[c] as usize..lvl.child[c + 1] as usize]
-                    .iter()
-                    .fold(f64::NEG_INFINITY, |m, &p| m.max(p))
+        let child = &h.levels[l].child;
+        let m = h.levels[l].len();
+        let ranges: Vec<(u32, u32)> = (0..m)
+            .map(|c| match &below {
+                None => (child[c], child[c + 1]),
+                Some(b) => (b[child[c] as usize].0, b[child[c + 1] as usize - 1].1),
             })
             .collect();
+        let fit: Vec<([f64; D], f64)> = ranges
+            .par_iter()
+            .map(|&(a, b)| {
+                affine_minorant(&pos[a as usize..b as usize], &hv[a as usize..b as usize])
+            })
+            .collect();
+        beta[l] = fit.iter().map(|f| f.0).collect();
+        alpha[l] = fit.iter().map(|f| f.1).collect();
+        below = Some(ranges);
     }
-    out
+    Bounds { beta, alpha }
+}
+
+/// Least-squares slope β of h over points y (0 where the points span no direction) and
+/// α = min(h − β·y).
+fn affine_minorant<const D: usize>(y: &[[f64; D]], h: &[f64]) -> ([f64; D], f64) {
+    let n = y.len() as f64;
+    let mut my = [0.0; D];
+    let mut mh = 0.0;
+    for (p, &v) in y.iter().zip(h) {
+        for k in 0..D {
+            my[k] += p[k];
+        }
+        mh += v;
+    }
+    my.iter_mut().for_each(|v| *v /= n);
+    mh /= n;
+    // Normal equations A β = r, A = Σ (y−ȳ)(y−ȳ)ᵀ, r = Σ (y−ȳ)(h−h̄).
+    let mut a = [[0.0; D]; D];
+    let mut r = [0.0; D];
+    for (p, &v) in y.iter().zip(h) {
+        let d: [f64; D] = std::array::from_fn(|k| p[k] - my[k]);
+        for i in 0..D {
+            r[i] += d[i] * (v - mh);
+            for j in 0..D {
+                a[i][j] += d[i] * d[j];
+            }
+        }
+    }
+    let beta = solve_spd(a, r);
+    let alpha = y
+        .iter()
+        .zip(h)
+        .map(|(p, &v)| v - (0..D).map(|k| beta[k] * p[k]).sum::<f64>())
+        .fold(f64::INFINITY, f64::min);
+    (beta, alpha)
+}
+
+/// Solves A x = r for a symmetric positive semi-definite A by Gaussian elimination, zeroing the
+/// components of directions A does not span (tiny pivots).
+fn solve_spd<const D: usize>(mut a: [[f64; D]; D], mut r: [f64; D]) -> [f64; D] {
+    let scale = (0..D).map(|k| a[k][k]).fold(0.0, f64::max);
+    let tiny = scale * 1e-12;
+    let mut ok = [true; D];
+    for k in 0..D {
+        if a[k][k] <= tiny {
+            ok[k] = false;
+            continue;
+        }
+        for i in k + 1..D {
+            let f = a[i][k] / a[k][k];
+            for j in k..D {
+                a[i][j] -= f * a[k][j];
+            }
+            r[i] -= f * r[k];
+        }
+    }
+    let mut x = [0.0; D];
+    for k in (0..D).rev() {
+        if !ok[k] {
+            continue;
+        }
+        let mut s = r[k];
+        for j in k + 1..D {
+            s -= a[k][j] * x[j];
+        }
+        x[k] = s / a[k][k];
+    }
+    if x.iter().all(|v| v.is_finite()) {
+        x
+    } else {
+        [0.0; D]
+    }
+}
+
+/// The affine lower bound of C(x, y_j) − pot_j over a cell's descendants.
+#[inline]
+fn cell_bound<const D: usize>(
+    x: &[f64; D],
+    x2: f64,
+    beta: &[f64; D],
+    alpha: f64,
+    lo: &[f64; D],
+    hi: &[f64; D],
+) -> f64 {
+    let mut s = x2 + alpha;
+    let mut mag = x2.abs() + alpha.abs();
+    for k in 0..D {
+        let c = beta[k] - 2.0 * x[k];
+        let t = (c * lo[k]).min(c * hi[k]);
+        s += t;
+        mag += t.abs();
+    }
+    // Rounding slack: the bound must never exceed the true value, or a pair at the threshold
+    // could be pruned.
+    s - mag * 1e-13
 }
 
 /// All cells j of `h` at `level` with C(x, y_j) − pot_j ≤ min + `margin`, appended to `out` as
@@ -91,7 +202,7 @@ fn max_pyramid<const D: usize>(h: &Hierarchy<D>, level: usize, pot: &[f64]) -> V
 fn search<const D: usize>(
     h: &Hierarchy<D>,
     level: usize,
-    maxp: &[Vec<f64>],
+    bnd: &Bounds<D>,
     pot: &[f64],
     x: &[f64; D],
     margin: f64,
@@ -99,6 +210,7 @@ fn search<const D: usize>(
     out: &mut Vec<(u32, f64)>,
 ) -> f64 {
     let start = out.len();
+    let x2: f64 = x.iter().map(|v| v * v).sum();
     let mut best = f64::INFINITY;
     stack.clear();
     stack.push((0, 0, f64::NEG_INFINITY));
@@ -133,7 +245,18 @@ fn search<const D: usize>(
         let mut m = 0;
         for j in a..b {
             let ju = j as usize;
-            let bound = sq_to_box(x, &next.lo[ju], &next.hi[ju]) - maxp[l + 1][ju];
+            let bound = if l + 1 == level {
+                sq(x, &next.pos[ju]) - pot[ju]
+            } else {
+                cell_bound(
+                    x,
+                    x2,
+                    &bnd.beta[l + 1][ju],
+                    bnd.alpha[l + 1][ju],
+                    &next.lo[ju],
+                    &next.hi[ju],
+                )
+            };
             if bound <= best + margin {
                 kids[m] = (bound, j);
                 m += 1;
@@ -167,7 +290,7 @@ fn search_all<const D: usize>(
     pot: &[f64],
     margin: f64,
 ) -> (Vec<usize>, Vec<u32>, Vec<f64>) {
-    let maxp = max_pyramid(to, level, pot);
+    let bnd = bounds(to, level, pot);
     let m = from.len();
     let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = (0..m.div_ceil(CHUNK))
         .into_par_iter()
@@ -183,7 +306,7 @@ fn search_all<const D: usize>(
                 let best = search(
                     to,
                     level,
-                    &maxp,
+                    &bnd,
                     pot,
                     &from.pos[i],
                     margin,
@@ -344,12 +467,22 @@ mod tests {
                 })
                 .collect()
         };
-        let (a, b) = (pts(0.3, 300), pts(0.7, 300));
+        let (a, b) = (pts(0.3, 700), pts(0.7, 700));
         let grid = Grid::new(&a, &b);
-        let (hs, ht) = (Hierarchy::new(&a, &grid, 4), Hierarchy::new(&b, &grid, 4));
-        for level in [2usize, 4, 5] {
+        let (hs, ht) = (Hierarchy::new(&a, &grid, 5), Hierarchy::new(&b, &grid, 5));
+        for (level, rough) in [(2usize, 0.0), (4, 1.0), (5, 0.0), (6, 0.0), (6, 1.0)] {
             let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
-            let g: Vec<f64> = ys.pos.iter().map(|y| 0.3 * y[0] - 0.1 * y[1] * y[1]).collect();
+            // Smooth potentials with large gradients (like real ones), optionally with noise.
+            let g: Vec<f64> = ys
+                .pos
+                .iter()
+                .enumerate()
+                .map(|(j, y)| {
+                    0.9 * (y[0] * y[0] + y[1] * y[1]) - 0.6 * y[0]
+                        + 0.3 * y[1]
+                        + rough * 1e-3 * ((j as f64 * 12.9898).sin() * 43758.5453).fract()
+                })
+                .collect();
             let eps = 1e-3;
             let theta = 8.0;
             let kern = build(&hs, &ht, level, &g, eps, theta);
