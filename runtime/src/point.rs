@@ -60,7 +60,7 @@ pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointV
         }
         if node.level >= s.depth() {
             for i in node.range() {
-                let y = s.position(i);
+                let y = s.position(node, i);
                 let mut r2 = 0.0;
                 for k in 0..d {
                     let t = y[k] - q[k];
