@@ -3,7 +3,7 @@
 #![allow(dead_code, clippy::needless_range_loop)]
 
 use otbake_formats::proxy::Proxy as ProxyData;
-use otbake_formats::storage::Storage;
+use otbake_formats::storage::{Precision, Storage};
 use otbake_formats::tree::{depth, fill_node_boxes, node_count};
 use otbake_formats::write::{encode_map_content, encode_proxy, MapContent};
 use rkyv::util::AlignedVec;
@@ -34,6 +34,31 @@ pub struct Fixture {
     pub colors: Vec<Vec<f32>>,
     pub mean_mass: Vec<f32>,
 }
+
+/// Storages property tests run over: full, compact, and mixes of every precision (all keeping
+/// node color sums, so every query answers).
+pub const STORAGES: [Storage; 5] = [
+    Storage::FULL,
+    Storage::COMPACT,
+    Storage {
+        positions: Precision::U16,
+        node_boxes: Precision::U16,
+        colors: Some(Precision::U16),
+        node_colors: true,
+    },
+    Storage {
+        positions: Precision::U8,
+        node_boxes: Precision::F32,
+        colors: Some(Precision::F32),
+        node_colors: true,
+    },
+    Storage {
+        positions: Precision::F32,
+        node_boxes: Precision::U16,
+        colors: Some(Precision::U8),
+        node_colors: true,
+    },
+];
 
 pub fn fixture(seed: u64, n: usize, dim: usize, leaf: u32, k: usize, key: [u8; 32]) -> Fixture {
     fixture_with(seed, n, dim, leaf, k, key, Storage::FULL)
