@@ -331,7 +331,7 @@ fn stated_bounds_are_tight() {
         }
     }
     assert!(
-        worst >= 0.5 && worst <= 1.0,
+        (0.5..=1.0).contains(&worst),
         "largest error / bound = {worst}"
     );
     assert!(moved > 3000, "only {moved} of 6000 coordinates changed");
@@ -357,12 +357,15 @@ fn range_queries_without_node_color_sums_are_errors() {
     let blend = Blend::new(proxy, &maps).unwrap();
     assert!(!blend.has_node_colors());
     let w = [0.5, 0.5];
-    let missing = Err(Error::MissingAttribute {
+    let missing = Error::MissingAttribute {
         map: 1,
         attribute: "node color sums",
-    });
-    assert_eq!(blend.range(&w, &[0.2, 0.2], &[0.8, 0.8]), missing);
-    assert!(missing.unwrap_err().to_string().contains("[storage]"));
+    };
+    assert_eq!(
+        blend.range(&w, &[0.2, 0.2], &[0.8, 0.8]),
+        Err(missing.clone())
+    );
+    assert!(missing.to_string().contains("[storage]"));
     // Everything else still answers, colors included.
     let v = blend.point(&w, &[0.5, 0.5], Kernel { sigma: 0.1 }).unwrap();
     assert!(v.density > 0.0 && v.color.iter().any(|&c| c > 0.0));
