@@ -334,6 +334,110 @@ impl<'a> MapView<'a> {
         }
     }
 
+    /// `out[j] += w · v_j` for every decoded position coordinate `j = i·dim + axis` (entries past
+    /// `n·dim` untouched): the decode and mix of `Blend::prepare`, one grid per leaf parent and
+    /// plain zipped loops within it. For `f32` positions, stream [`MapView::positions_f32`] instead.
+    pub fn add_positions(&self, w: f32, out: &mut [f32]) {
+        let bytes: &[u8] = &self.archived.positions;
+        let d = self.dim;
+        let p = self.storage.positions;
+        if !p.is_quantized() {
+            for (o, v) in out.iter_mut().zip(f32s(bytes)) {
+                *o += w * v;
+            }
+            return;
+        }
+        let (m, b) = (p.max_code(), p.bytes());
+        let level = self.depth.saturating_sub(1);
+        let count = if self.depth == 0 { 1 } else { 1u32 << level };
+        for offset in 0..count {
+            let node = tree::node_at(self.n, level, offset);
+            let g = if self.depth == 0 {
+                Grid::of_box(self.bounds.lo, self.bounds.hi, p)
+            } else {
+                let (lo, hi) = self.internal_box(node.index as usize);
+                Grid::of_box(lo, hi, p)
+            };
+            let r = node.range();
+            let (Some(codes), Some(outs)) = (
+                bytes.get(r.start * d * b..r.end * d * b),
+                out.get_mut(r.start * d..r.end * d),
+            ) else {
+                continue;
+            };
+            match p {
+                Precision::U8 => {
+                    for (o, c) in outs.chunks_exact_mut(d).zip(codes.chunks_exact(d)) {
+                        for k in 0..d {
+                            o[k] += w * dequantize(g.lo[k], g.hi[k], g.step[k], c[k] as u32, m);
+                        }
+                    }
+                }
+                _ => {
+                    for (o, c) in outs.chunks_exact_mut(d).zip(codes.chunks_exact(2 * d)) {
+                        for k in 0..d {
+                            let q = u16::from_le_bytes([c[2 * k], c[2 * k + 1]]) as u32;
+                            o[k] += w * dequantize(g.lo[k], g.hi[k], g.step[k], q, m);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// `out[j] += w · v_j` for every decoded color value `j = i·3 + channel`.
+    pub fn add_colors(&self, w: f32, out: &mut [f32]) {
+        let bytes: &[u8] = &self.archived.colors;
+        let (lo, hi, s) = (self.color_lo, self.color_hi, self.color_step);
+        match self.storage.colors {
+            None => {}
+            Some(Precision::F32) => {
+                for (o, v) in out.iter_mut().zip(f32s(bytes)) {
+                    *o += w * v;
+                }
+            }
+            Some(Precision::U8) => {
+                for (o, c) in out.chunks_exact_mut(3).zip(bytes.chunks_exact(3)) {
+                    for ch in 0..3 {
+                        o[ch] += w * dequantize(lo[ch], hi[ch], s[ch], c[ch] as u32, 255);
+                    }
+                }
+            }
+            Some(Precision::U16) => {
+                for (o, c) in out.chunks_exact_mut(3).zip(bytes.chunks_exact(6)) {
+                    for ch in 0..3 {
+                        let q = u16::from_le_bytes([c[2 * ch], c[2 * ch + 1]]) as u32;
+                        o[ch] += w * dequantize(lo[ch], hi[ch], s[ch], q, 65535);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `out[j] += w · v_j` for every decoded internal node box value `j = node·2·dim + t`.
+    pub fn add_internal_boxes(&self, w: f32, out: &mut [f32]) {
+        let bytes: &[u8] = &self.archived.node_boxes;
+        let d = self.dim;
+        let g = &self.bounds;
+        match self.storage.node_boxes {
+            Precision::F32 => {
+                for (o, v) in out.iter_mut().zip(f32s(bytes)) {
+                    *o += w * v;
+                }
+            }
+            p => {
+                let m = p.max_code();
+                for (o, c) in out.chunks_exact_mut(2 * d).zip(bytes.chunks_exact(4 * d)) {
+                    for t in 0..2 * d {
+                        let k = if t < d { t } else { t - d };
+                        let q = u16::from_le_bytes([c[2 * t], c[2 * t + 1]]) as u32;
+                        o[t] += w * dequantize(g.lo[k], g.hi[k], g.step[k], q, m);
+                    }
+                }
+            }
+        }
+    }
+
     /// Calls `f(j, v)` for every color value `j = i·3 + channel` in order, decoded (none without
     /// colors).
     pub fn for_each_color(&self, mut f: impl FnMut(usize, f32)) {

@@ -88,17 +88,13 @@ fn mix_stream(out: &mut [f32], w: f32, first: bool, values: impl Iterator<Item =
     }
 }
 
-/// [`mix_stream`] for a decoder that calls `f(j, v)` per entry (quantized fields): the `f`.
-/// Zeroing first and then adding gives `0.0 + w·v` for the first map, the bits of `mix`.
-fn mix_indexed(out: &mut [f32], w: f32, first: bool) -> impl FnMut(usize, f32) + '_ {
+/// [`mix_stream`] for a decoder that adds `w · v` to every entry (quantized fields): zeroing first
+/// and then adding gives `0.0 + w·v` for the first map, the bits of `mix`.
+fn mix_decoded(out: &mut [f32], first: bool, add: impl FnOnce(&mut [f32])) {
     if first {
         out.fill(0.0);
     }
-    move |j, v| {
-        if let Some(o) = out.get_mut(j) {
-            *o += w * v;
-        }
-    }
+    add(out);
 }
 
 impl<'a> Blend<'a, '_> {
@@ -157,16 +153,16 @@ impl<'a> Blend<'a, '_> {
             let v = m.view();
             match v.positions_f32() {
                 Some(values) => mix_stream(positions, w, first, values),
-                None => v.for_each_position(mix_indexed(positions, w, first)),
+                None => mix_decoded(positions, first, |o| v.add_positions(w, o)),
             }
             match v.internal_boxes_f32() {
                 Some(values) => mix_stream(inner_boxes, w, first, values),
-                None => v.for_each_internal_box_value(mix_indexed(inner_boxes, w, first)),
+                None => mix_decoded(inner_boxes, first, |o| v.add_internal_boxes(w, o)),
             }
             if self.has_color {
                 match v.colors_f32() {
                     Some(values) => mix_stream(colors, w, first, values),
-                    None => v.for_each_color(mix_indexed(colors, w, first)),
+                    None => mix_decoded(colors, first, |o| v.add_colors(w, o)),
                 }
                 if !inner_colors.is_empty() {
                     mix_stream(inner_colors, w, first, v.internal_colors());
