@@ -9,7 +9,8 @@
 //! stated largest position and color error, the measured largest and mean position error against the
 //! full map, and, for the blend of all maps at equal weights, how far whole-grid point queries
 //! (`Prepared::point_grid`: a 256² image in 2D, a 64³ grid in 3D) and 2000 range queries move, and
-//! the time `Blend::prepare` takes (decoding included).
+//! the time `Blend::prepare` takes (decoding included) and a `Blend::point` call takes on the fly
+//! (decoding per read; 2000 calls at random points, σ as in the grid).
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
@@ -196,8 +197,17 @@ fn main() -> anyhow::Result<()> {
             },
         ),
     ];
-    println!("| storage | bytes per map | stated max position error | measured max / mean position error | stated max color error | point grid: max / mean density error (of max / mean density) | point grid: max color error (of max color) | range: max count error, mean relative | prepare |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| storage | bytes per map | stated max position error | measured max / mean position error | stated max color error | point grid: max / mean density error (of max / mean density) | point grid: max color error (of max color) | range: max count error, mean relative | prepare | Blend::point |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    let mut rng = Rng(11);
+    let probes: Vec<Vec<f32>> = (0..2000)
+        .map(|_| (0..dim).map(|_| 0.1 + 0.8 * rng.unit()).collect())
+        .collect();
+    let sigma = if dim == 2 {
+        0.5 / 256.0
+    } else {
+        1.0 / [4096.0, 256.0, 64.0, 16.0][dim - 1]
+    };
     for (name, s) in storages {
         let bytes: Vec<AlignedVec<16>> = contents.iter().map(|c| encode(c, s)).collect();
         let maps: Vec<Map<'_>> = bytes
@@ -231,6 +241,13 @@ fn main() -> anyhow::Result<()> {
             times.push(t.elapsed().as_secs_f64());
         }
         times.sort_by(f64::total_cmp);
+        let t = Instant::now();
+        let mut sink = 0.0f32;
+        for p in &probes {
+            sink += blend.point(&w, p, Kernel { sigma })?.density;
+        }
+        let per_point = t.elapsed().as_secs_f64() / probes.len() as f64;
+        std::hint::black_box(sink);
         let prep = prepare(&blend, &w, &mut bufs);
         let g = grid(&prep);
         let (mut dmax, mut dsum, mut cmax) = (0.0f32, 0.0f64, 0.0f32);
@@ -265,7 +282,7 @@ fn main() -> anyhow::Result<()> {
             "no colors".into()
         };
         println!(
-            "| {name} | {} ({:.2} MB, {:.2} B/point) | {stated:.1e} | {worst:.1e} / {mean:.1e} | {} | {:.1e} / {:.1e} ({:.1e} / {:.1e}) | {color_err} | {range} | {:.1} ms |",
+            "| {name} | {} ({:.2} MB, {:.2} B/point) | {stated:.1e} | {worst:.1e} / {mean:.1e} | {} | {:.1e} / {:.1e} ({:.1e} / {:.1e}) | {color_err} | {range} | {:.1} ms | {:.1} µs |",
             size,
             size as f64 / 1e6,
             size as f64 / n as f64,
@@ -275,6 +292,7 @@ fn main() -> anyhow::Result<()> {
             dmax / max_density,
             dmean / mean_density,
             times[times.len() / 2] * 1e3,
+            per_point * 1e6,
         );
     }
     Ok(())

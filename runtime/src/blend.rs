@@ -11,6 +11,7 @@ use crate::archive::{Map, Proxy};
 use crate::error::Error;
 use crate::MAX_DIM;
 use otbake_formats::tree::Node;
+use otbake_formats::view::Grid;
 
 /// How far the weights may sum from 1.
 pub const WEIGHT_SUM_TOLERANCE: f32 = 1e-4;
@@ -210,13 +211,24 @@ impl<'a, 'm> Blend<'a, 'm> {
         point_arg(self.dim, p)
     }
 
-    /// Blended position of point `i` of leaf `leaf` (weights assumed checked, `i < n`): per
-    /// coordinate, the [`mix`] of the maps' decoded coordinates.
+    /// Makes `grids` hold every quantized map's decode grid for the points of `leaf` (once per
+    /// visited leaf, instead of once per point and map).
     #[inline]
-    pub(crate) fn position(&self, weights: &[f32], leaf: Node, i: usize) -> [f32; MAX_DIM] {
+    pub(crate) fn enter(&self, leaf: Node, grids: &mut LeafGrids) {
+        for (g, m) in grids.0.iter_mut().zip(self.maps) {
+            if m.storage().positions.is_quantized() {
+                *g = m.view().leaf_grid(leaf);
+            }
+        }
+    }
+
+    /// Blended position of point `i` of the leaf `grids` last entered (weights assumed checked,
+    /// `i < n`): per coordinate, the [`mix`] of the maps' decoded coordinates.
+    #[inline]
+    pub(crate) fn position(&self, weights: &[f32], grids: &LeafGrids, i: usize) -> [f32; MAX_DIM] {
         let mut out = [0.0; MAX_DIM];
-        for (w, m) in weights.iter().zip(self.maps) {
-            let p = m.view().position_in(leaf, i);
+        for ((w, m), g) in weights.iter().zip(self.maps).zip(&grids.0) {
+            let p = m.view().position_on(g, i);
             for (o, v) in out.iter_mut().zip(p).take(self.dim) {
                 *o += w * v;
             }
@@ -241,9 +253,14 @@ impl<'a, 'm> Blend<'a, 'm> {
     }
 
     /// Blended box (`lo`, `hi`) of a node: the mix of the maps' stored boxes for an internal node,
-    /// the box of the blended points for a leaf (zeros for a leaf without points).
+    /// the box of the blended points for a leaf (zeros for a leaf without points), which it enters.
     #[inline]
-    pub(crate) fn node_box(&self, weights: &[f32], node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
+    pub(crate) fn node_box(
+        &self,
+        weights: &[f32],
+        node: Node,
+        grids: &mut LeafGrids,
+    ) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
         let d = self.dim;
         let mut lo = [0.0; MAX_DIM];
         let mut hi = [0.0; MAX_DIM];
@@ -256,10 +273,12 @@ impl<'a, 'm> Blend<'a, 'm> {
                 }
             }
         } else {
+            self.enter(node, grids);
+            let grids = &*grids;
             leaf_box(
                 d,
                 node,
-                |i| self.position(weights, node, i),
+                |i| self.position(weights, grids, i),
                 &mut lo,
                 &mut hi,
             );
@@ -309,6 +328,10 @@ impl<'a, 'm> Blend<'a, 'm> {
     }
 }
 
+/// Per-map decode grids of the leaf a query is reading (`Grid::default()` for `f32` maps): a
+/// query's scratch, created once per query.
+pub(crate) struct LeafGrids([Grid; MAX_MAPS]);
+
 /// What every query reads: blended points, colors, node boxes and node color sums. Queries are
 /// written once, generic over their source, so a [`Blend`] (mixing on the fly) and a
 /// [`crate::Prepared`] (reading mixed buffers) run the same operations and return the same bits.
@@ -318,10 +341,17 @@ pub(crate) trait Source {
     fn depth(&self) -> u32;
     fn has_color(&self) -> bool;
     fn mean_mass(&self) -> f32;
-    /// Blended point `i`, which leaf `leaf` holds.
-    fn position(&self, leaf: Node, i: usize) -> [f32; MAX_DIM];
+    /// A query's scratch for reading one leaf's points at a time (decode grids of quantized maps).
+    type Leaf;
+    /// A fresh scratch, once per query.
+    fn leaf_state(&self) -> Self::Leaf;
+    /// Makes `state` read the points of `leaf`.
+    fn enter(&self, leaf: Node, state: &mut Self::Leaf);
+    /// Blended point `i` of the leaf `state` last entered.
+    fn position(&self, state: &Self::Leaf, i: usize) -> [f32; MAX_DIM];
     fn color(&self, i: usize) -> [f32; 3];
-    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]);
+    /// Blended box of a node; a leaf is entered on the way (its points can be read next).
+    fn node_box(&self, node: Node, state: &mut Self::Leaf) -> ([f32; MAX_DIM], [f32; MAX_DIM]);
     fn node_color(&self, node: Node) -> [f32; 3];
 }
 
@@ -332,6 +362,14 @@ pub(crate) struct Weighted<'s, 'a, 'm> {
 }
 
 impl Source for Weighted<'_, '_, '_> {
+    type Leaf = LeafGrids;
+    fn leaf_state(&self) -> LeafGrids {
+        LeafGrids([Grid::default(); MAX_MAPS])
+    }
+    #[inline]
+    fn enter(&self, leaf: Node, state: &mut LeafGrids) {
+        self.blend.enter(leaf, state)
+    }
     fn dim(&self) -> usize {
         self.blend.dim
     }
@@ -348,16 +386,16 @@ impl Source for Weighted<'_, '_, '_> {
         self.blend.mean_mass(self.weights)
     }
     #[inline]
-    fn position(&self, leaf: Node, i: usize) -> [f32; MAX_DIM] {
-        self.blend.position(self.weights, leaf, i)
+    fn position(&self, state: &LeafGrids, i: usize) -> [f32; MAX_DIM] {
+        self.blend.position(self.weights, state, i)
     }
     #[inline]
     fn color(&self, i: usize) -> [f32; 3] {
         self.blend.color(self.weights, i)
     }
     #[inline]
-    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
-        self.blend.node_box(self.weights, node)
+    fn node_box(&self, node: Node, state: &mut LeafGrids) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
+        self.blend.node_box(self.weights, node, state)
     }
     #[inline]
     fn node_color(&self, node: Node) -> [f32; 3] {
@@ -371,8 +409,10 @@ pub(crate) fn sample(s: &impl Source, index: u32) -> Result<Sample, Error> {
         return Err(Error::IndexOutOfRange { index, n: s.n() });
     }
     let leaf = otbake_formats::tree::leaf_of(s.n(), s.depth(), index);
+    let mut state = s.leaf_state();
+    s.enter(leaf, &mut state);
     Ok(Sample {
-        position: s.position(leaf, index as usize),
+        position: s.position(&state, index as usize),
         color: s.color(index as usize),
     })
 }

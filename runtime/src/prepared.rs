@@ -294,6 +294,10 @@ impl Prepared<'_> {
 }
 
 impl Source for Prepared<'_> {
+    type Leaf = ();
+    fn leaf_state(&self) {}
+    #[inline]
+    fn enter(&self, _leaf: Node, _state: &mut ()) {}
     fn dim(&self) -> usize {
         self.dim
     }
@@ -310,7 +314,7 @@ impl Source for Prepared<'_> {
         self.mean_mass
     }
     #[inline]
-    fn position(&self, _leaf: Node, i: usize) -> [f32; MAX_DIM] {
+    fn position(&self, _state: &(), i: usize) -> [f32; MAX_DIM] {
         let d = self.dim;
         let mut out = [0.0; MAX_DIM];
         if let Some(s) = self.positions.get(i * d..i * d + d) {
@@ -326,7 +330,7 @@ impl Source for Prepared<'_> {
         }
     }
     #[inline]
-    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
+    fn node_box(&self, node: Node, _state: &mut ()) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
         let d = self.dim;
         let base = node.index as usize * 2 * d;
         let mut lo = [0.0; MAX_DIM];

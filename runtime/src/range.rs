@@ -39,12 +39,13 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
     let d = s.dim();
     let mut count = 0u32;
     let mut csum = [0.0f32; 3];
+    let mut leaf = s.leaf_state();
     let mut stack = Stack::new(Node::root(s.n()));
     while let Some(node) = stack.pop() {
         if node.count == 0 {
             continue;
         }
-        let (blo, bhi) = s.node_box(node);
+        let (blo, bhi) = s.node_box(node, &mut leaf);
         if (0..d).any(|k| blo[k] > qhi[k] || bhi[k] < qlo[k]) {
             continue;
         }
@@ -58,7 +59,7 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
         }
         if node.level >= s.depth() {
             for i in node.range() {
-                let y = s.position(node, i);
+                let y = s.position(&leaf, i);
                 if (0..d).all(|k| y[k] >= qlo[k] && y[k] <= qhi[k]) {
                     count += 1;
                     let c = s.color(i);

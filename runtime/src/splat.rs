@@ -100,8 +100,14 @@ pub(crate) fn splat(
         let leaf = otbake_formats::tree::node_at(s.n(), depth, offset as u32);
         leaf.range().map(move |i| (leaf, i))
     });
+    let mut state = s.leaf_state();
+    let mut entered = None;
     for (leaf, i) in points {
-        let y = s.position(leaf, i);
+        if entered != Some(leaf.index) {
+            s.enter(leaf, &mut state);
+            entered = Some(leaf.index);
+        }
+        let y = s.position(&state, i);
         let c = s.color(i);
         // Cells whose centers can lie within the radius, clamped to the grid.
         let mut first = [0usize; MAX_DIM];
