@@ -51,6 +51,10 @@ pub const MAGIC: [u8; 8] = *b"OTBAKE\0\x01";
 
 /// Version of the archive layout. Bump on any change to the header or to an archived type; the
 /// runtime accepts exactly this version (no silent reinterpretation of older bytes).
+///
+/// History: 1, every map attribute in `f32`, boxes and color sums of every node; 2, a storage
+/// descriptor ([`storage`]) with quantized and optional attributes, boxes and color sums of internal
+/// nodes only.
 pub const FORMAT_VERSION: u32 = 2;
 
 /// rkyv format flags the payload is written with, recorded in the header so that a reader built with

@@ -240,3 +240,26 @@ fn a_manifest_stores_only_what_it_asks_for() {
     let internal = (1u64 << otbake_formats::tree::depth(1500, 8)) - 1;
     assert!(bytes <= 1500 * 2 + internal * 8 + 1024, "{bytes} bytes");
 }
+
+/// Quantized archives are the same bytes for any thread count (and the encoder is deterministic).
+#[test]
+fn compact_bakes_are_thread_count_independent() {
+    let bin = otbake_tests::otbake_bin();
+    let mut outputs: Vec<Vec<Vec<u8>>> = Vec::new();
+    for threads in ["1", "3"] {
+        let dir = scratch(&format!("storage-threads-{threads}"));
+        let m = manifest(&dir, "c", 3000, "[storage]\npreset = \"compact\"\n");
+        let st = std::process::Command::new(&bin)
+            .args(["bake", m.path.to_str().unwrap()])
+            .env("RAYON_NUM_THREADS", threads)
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let files = SHAPES.iter().map(|s| m.map_archive(s));
+        outputs.push(files.map(|f| std::fs::read(f).unwrap()).collect());
+    }
+    assert_eq!(
+        outputs[0], outputs[1],
+        "archives differ between thread counts"
+    );
+}
