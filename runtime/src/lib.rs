@@ -11,6 +11,12 @@
 //! and region queries ([`Prepared::point_grid`], [`Prepared::splat_region`]) evaluate a whole box of
 //! grid cells in one traversal, so a renderer can hand bands or tiles to its own threads.
 //!
+//! Maps may be stored in full or quantized ([`Storage`]: `u16`/`u8` positions and colors, `u16`
+//! node boxes, optional colors and node color sums), and maps of any storage blend together: queries
+//! decode per read, [`Blend::prepare`] decodes once into its `f32` buffers. [`Map::position_error`]
+//! and [`Map::color_error`] state how far stored values may be from the full-precision ones; a query
+//! that needs an attribute a map left out returns [`Error::MissingAttribute`].
+//!
 //! The crate is `#![no_std]`, never allocates, contains no `unsafe`, and returns an error (never
 //! panics) for any archive bytes, weights or coordinates.
 //!
