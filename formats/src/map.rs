@@ -31,7 +31,7 @@ use rkyv::{Archive, Serialize};
 /// `Σ w_k positions_k[i]`, and the box of node `j` in that blend is contained in `Σ w_k box_k[j]`
 /// (particles move on straight lines), which is what lets the runtime prune for any weights.
 ///
-/// Write one with [`crate::write::encode_map_content`] (which quantizes per a
+/// Write one with `write::encode_map_content` (feature `write`; it quantizes per a
 /// [`crate::storage::Storage`]); this struct is the raw schema, for forging test archives.
 #[derive(Archive, Serialize, Debug)]
 pub struct Map<'a> {
