@@ -1,10 +1,10 @@
 //! Turning baked data into archive bytes, and recognizing archives already on disk.
 
-use otbake_formats::map::Map;
 use otbake_formats::proxy::Proxy;
-use otbake_formats::tree::{depth, fill_node_boxes, fill_node_sums, node_count};
-use otbake_formats::write::{encode_map, encode_proxy, WriteError};
-use otbake_formats::{Composite, COLOR_CHANNELS};
+use otbake_formats::storage::Storage;
+use otbake_formats::tree::{depth, fill_node_boxes, node_count};
+use otbake_formats::write::{encode_map_content, encode_proxy, MapContent, WriteError};
+use otbake_formats::Composite;
 use rkyv::util::AlignedVec;
 use std::path::Path;
 
@@ -71,36 +71,29 @@ pub struct MapData {
     pub solver_report: String,
     /// Mean squared displacement.
     pub transport_cost: f64,
+    /// What the archive stores, and how precisely (the manifest's `[storage]`).
+    pub storage: Storage,
 }
 
 impl MapData {
-    /// Archive bytes.
+    /// Archive bytes: positions and colors (full precision here) stored per `storage`.
     pub fn encode(&self) -> Result<AlignedVec<16>, WriteError> {
         let n = (self.positions.len() / self.dim) as u32;
-        let d = depth(n, self.leaf_size);
-        let nodes = node_count(d) as usize;
-        let mut boxes = vec![0.0; nodes * 2 * self.dim];
-        fill_node_boxes(&self.positions, self.dim, d, &mut boxes);
-        let mut sums = Vec::new();
-        if !self.colors.is_empty() {
-            sums = vec![0.0; nodes * COLOR_CHANNELS];
-            fill_node_sums(&self.colors, COLOR_CHANNELS, d, &mut sums);
-        }
-        encode_map(&Map {
-            dim: self.dim as u32,
-            n,
-            depth: d,
-            proxy_key: self.proxy_key,
-            key: self.key,
-            composite: self.composite as u32,
-            mean_mass: self.mean_mass,
-            positions: &self.positions,
-            colors: &self.colors,
-            node_boxes: &boxes,
-            node_colors: &sums,
-            solver_report: &self.solver_report,
-            transport_cost: self.transport_cost,
-        })
+        encode_map_content(
+            &MapContent {
+                dim: self.dim as u32,
+                depth: depth(n, self.leaf_size),
+                proxy_key: self.proxy_key,
+                key: self.key,
+                composite: self.composite as u32,
+                mean_mass: self.mean_mass,
+                positions: &self.positions,
+                colors: &self.colors,
+                solver_report: &self.solver_report,
+                transport_cost: self.transport_cost,
+            },
+            self.storage,
+        )
     }
 }
 

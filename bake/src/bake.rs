@@ -164,7 +164,9 @@ pub fn proxy_key(m: &Manifest, dim: usize, index: &mut StatIndex) -> Result<[u8;
     Ok(k.finish())
 }
 
-/// A map's key: the proxy key, the input's identity, and the solver settings (not the input's name).
+/// A map's key: the proxy key, the input's identity, the solver settings and the storage settings
+/// (not the input's name). The proxy's key does not include storage: the proxy archive is always
+/// stored in full, so changing `[storage]` rebakes maps only.
 pub fn map_key(
     m: &Manifest,
     proxy_key: &[u8; 32],
@@ -175,6 +177,7 @@ pub fn map_key(
     k.field("proxy", proxy_key);
     input_identity(&mut k, spec, index)?;
     k.field("solver", m.solver.fingerprint().as_bytes());
+    k.field("storage", &m.storage.to_codes());
     Ok(k.finish())
 }
 
@@ -546,7 +549,7 @@ fn build_map(
         let r = &solution.report;
         (solution.mapped, r.detail.clone(), r.cost)
     };
-    let colors = if grid.ratio.is_empty() {
+    let colors = if grid.ratio.is_empty() || m.storage.colors.is_none() {
         Vec::new()
     } else {
         positions
@@ -565,5 +568,6 @@ fn build_map(
         colors,
         solver_report,
         transport_cost,
+        storage: m.storage,
     })
 }

@@ -43,8 +43,9 @@ pub fn describe(bytes: &[u8]) -> String {
             }
             Err(e) => s += &format!("payload        INVALID: {e}\n"),
         },
-        ArchiveKind::Map => match otbake_formats::open::open_map(&aligned) {
-            Ok(m) => {
+        ArchiveKind::Map => match otbake_formats::view::MapView::open(&aligned) {
+            Ok(view) => {
+                let m = view.archived();
                 s += &format!(
                     "map            dim={} n={} depth={} composite={} mean_mass={}\n",
                     m.dim, m.n, m.depth, m.composite, m.mean_mass
@@ -53,18 +54,47 @@ pub fn describe(bytes: &[u8]) -> String {
                 s += &format!("proxy key      {}\n", hex(&m.proxy_key));
                 s += &format!("solver         {}\n", &*m.solver_report);
                 s += &format!("transport cost {:.6e}\n", m.transport_cost.to_native());
+                s += &format!("storage        {}\n", describe_storage(&view.storage()));
                 s += &format!(
                     "sizes          positions={} B colors={} B node_boxes={} B node_colors={} B\n",
-                    m.positions.len() * 4,
-                    m.colors.len() * 4,
-                    m.node_boxes.len() * 4,
+                    m.positions.len(),
+                    m.colors.len(),
+                    m.node_boxes.len(),
                     m.node_colors.len() * 4
+                );
+                let d = view.dim();
+                let pe = view.max_position_error();
+                let ce = view.color_error();
+                s += &format!(
+                    "error bound    position {} (largest per axis), color {}\n",
+                    list(&pe[..d]),
+                    if view.has_color() {
+                        list(&ce)
+                    } else {
+                        "none stored".into()
+                    }
                 );
             }
             Err(e) => s += &format!("payload        INVALID: {e}\n"),
         },
     }
     s + &format!("payload offset {HEADER_LEN}\n")
+}
+
+/// `positions=u8 node_boxes=u16 colors=u8 node_colors=yes`.
+pub fn describe_storage(s: &otbake_formats::storage::Storage) -> String {
+    format!(
+        "positions={} node_boxes={} colors={} node_colors={}",
+        s.positions.name(),
+        s.node_boxes.name(),
+        s.colors.map_or("none", |p| p.name()),
+        if s.node_colors { "yes" } else { "no" }
+    )
+}
+
+fn list(v: &[f32]) -> String {
+    let parts: Vec<String> = v.iter().map(|x| format!("{x:.3e}")).collect();
+    format!("[{}]", parts.join(", "))
 }
 
 /// Full validation (header, checksum, rkyv, consistency).

@@ -25,11 +25,19 @@
 //!
 //! [brdf]                        # optional; for .binary (MERL) and .brdf (Cornell) inputs
 //! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
+//!
+//! [storage]                     # optional: what every map archive stores, how precisely
+//! preset = "compact"            # full (default: all f32) | compact (u8/u16/u8, node colors kept)
+//! positions = "u8"              # f32 | u16 | u8 (on the box of each leaf's parent)
+//! node_boxes = "u16"            # f32 | u16 (on the map's bounds, rounded outward)
+//! colors = "u8"                 # f32 | u16 | u8 | none (density-only scenes)
+//! node_colors = true            # node color sums, for range queries of color (LOD)
 //! ```
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
 use crate::solve::{ExactSettings, SlicedSettings, SolverSettings};
+use otbake_formats::storage::{Precision, Storage};
 use serde::Deserialize;
 use std::fmt;
 use std::ops::Range;
@@ -89,6 +97,8 @@ pub struct Manifest {
     pub solver: SolverSettings,
     /// Inputs in manifest order.
     pub inputs: Vec<InputSpec>,
+    /// What map archives store and how precisely (`[storage]`; default [`Storage::FULL`]).
+    pub storage: Storage,
 }
 
 /// Where proxy points come from.
@@ -415,12 +425,51 @@ impl Manifest {
             }
         };
 
+        let storage = match &raw.storage {
+            None => Storage::FULL,
+            Some(st) => {
+                let mut s = match st.preset {
+                    None | Some(RawPreset::Full) => Storage::FULL,
+                    Some(RawPreset::Compact) => Storage::COMPACT,
+                };
+                if let Some(p) = st.positions {
+                    s.positions = p.precision();
+                }
+                if let Some(b) = st.node_boxes {
+                    s.node_boxes = match b {
+                        RawBoxes::F32 => Precision::F32,
+                        RawBoxes::U16 => Precision::U16,
+                    };
+                }
+                if let Some(c) = st.colors {
+                    s.colors = match c {
+                        RawColors::None => None,
+                        RawColors::F32 => Some(Precision::F32),
+                        RawColors::U16 => Some(Precision::U16),
+                        RawColors::U8 => Some(Precision::U8),
+                    };
+                }
+                match &st.node_colors {
+                    Some(nc) if *nc.get_ref() && s.colors.is_none() => {
+                        return Err(at(
+                            Some(nc.span()),
+                            "`storage.node_colors = true` needs colors, but `storage.colors = \"none\"`: remove one of them".into(),
+                        ));
+                    }
+                    Some(nc) => s.node_colors = *nc.get_ref(),
+                    None => {}
+                }
+                s.for_input(s.colors.is_some())
+            }
+        };
+
         Ok(Manifest {
             path: path.to_path_buf(),
             output_dir,
             proxy,
             solver,
             inputs,
+            storage,
         })
     }
 }
@@ -443,6 +492,58 @@ struct RawManifest {
     #[serde(rename = "input", default)]
     inputs: Vec<RawInput>,
     brdf: Option<RawBrdf>,
+    storage: Option<RawStorage>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawStorage {
+    preset: Option<RawPreset>,
+    positions: Option<RawPrecision>,
+    node_boxes: Option<RawBoxes>,
+    colors: Option<RawColors>,
+    node_colors: Option<Spanned<bool>>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RawPreset {
+    Full,
+    Compact,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RawPrecision {
+    F32,
+    U16,
+    U8,
+}
+
+impl RawPrecision {
+    fn precision(self) -> Precision {
+        match self {
+            Self::F32 => Precision::F32,
+            Self::U16 => Precision::U16,
+            Self::U8 => Precision::U8,
+        }
+    }
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RawBoxes {
+    F32,
+    U16,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RawColors {
+    None,
+    F32,
+    U16,
+    U8,
 }
 
 #[derive(Deserialize)]
@@ -573,5 +674,54 @@ density = "inverted"
         assert!(e.message.contains("only to kind"), "{e}");
         let e = manifest(&GOOD.replace("kind = \"gaussian\"", "kind = \"input\"")).unwrap_err();
         assert!(e.message.contains("proxy.input"), "{e}");
+    }
+
+    #[test]
+    fn storage_defaults_to_full_and_takes_a_preset_and_overrides() {
+        assert_eq!(manifest(GOOD).unwrap().storage, Storage::FULL);
+        let m = manifest(&format!("{GOOD}[storage]\npreset = \"compact\"\n")).unwrap();
+        assert_eq!(m.storage, Storage::COMPACT);
+        let m = manifest(&format!(
+            "{GOOD}[storage]\npreset = \"compact\"\npositions = \"u16\"\ncolors = \"none\"\n"
+        ))
+        .unwrap();
+        assert_eq!(
+            m.storage,
+            Storage {
+                positions: Precision::U16,
+                node_boxes: Precision::U16,
+                colors: None,
+                node_colors: false,
+            }
+        );
+        let m = manifest(&format!(
+            "{GOOD}[storage]\nnode_boxes = \"u16\"\nnode_colors = false\n"
+        ))
+        .unwrap();
+        assert_eq!(
+            m.storage,
+            Storage {
+                node_boxes: Precision::U16,
+                node_colors: false,
+                ..Storage::FULL
+            }
+        );
+    }
+
+    #[test]
+    fn bad_storage_is_located() {
+        let e = manifest(&format!("{GOOD}[storage]\npositions = \"u4\"\n")).unwrap_err();
+        assert_eq!(e.line, 14, "{e}");
+        assert!(e.message.contains("u4") && e.message.contains("u16"), "{e}");
+        let e = manifest(&format!("{GOOD}[storage]\nnode_boxes = \"u8\"\n")).unwrap_err();
+        assert_eq!(e.line, 14, "{e}");
+        let e = manifest(&format!(
+            "{GOOD}[storage]\ncolors = \"none\"\nnode_colors = true\n"
+        ))
+        .unwrap_err();
+        assert_eq!(e.line, 15, "{e}");
+        assert!(e.message.contains("needs colors"), "{e}");
+        let e = manifest(&format!("{GOOD}[storage]\nprecision = \"u8\"\n")).unwrap_err();
+        assert!(e.message.contains("unknown field"), "{e}");
     }
 }

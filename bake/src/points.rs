@@ -6,7 +6,7 @@ use crate::render::RenderError;
 use otbake_runtime::{Map, Proxy};
 
 /// `.npy` bytes of an `n × 2d` float32 matrix: row i is proxy point i then its image under the map
-/// of input `name`, in tree order.
+/// of input `name` (as stored: decoded when quantized), in tree order.
 pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
     let pbytes = read_aligned(&m.proxy_archive())?;
     let mbytes = read_aligned(&m.map_archive(name))?;
@@ -22,9 +22,16 @@ pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
             source: otbake_runtime::Error::ProxyMismatch { map: 0 },
         });
     }
-    let (p, q) = (proxy.archived(), map.archived());
+    let p = proxy.archived();
     let d = proxy.dim();
     let n = proxy.n() as usize;
+    // Mapped positions as stored (decoded when quantized), in one pass over the map.
+    let mut mapped = vec![0.0f32; n * d];
+    map.view().for_each_position(|j, v| {
+        if let Some(o) = mapped.get_mut(j) {
+            *o = v;
+        }
+    });
     let mut data = Vec::with_capacity(n * 2 * d);
     for i in 0..n {
         data.extend(
@@ -32,11 +39,7 @@ pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
                 .iter()
                 .map(|v| v.to_native()),
         );
-        data.extend(
-            q.positions[i * d..(i + 1) * d]
-                .iter()
-                .map(|v| v.to_native()),
-        );
+        data.extend_from_slice(&mapped[i * d..(i + 1) * d]);
     }
     Ok(crate::npy::encode_f32(n, 2 * d, &data))
 }

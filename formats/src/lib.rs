@@ -6,8 +6,10 @@
 //! * a **proxy archive** ([`proxy::Proxy`]) holds the proxy samples in tree order and the proxy box of
 //!   every node of the implicit tree ([`tree`]);
 //! * a **map archive** ([`map::Map`]) holds, for one input, the image of every proxy sample under the
-//!   optimal-transport map (same order), the box of the mapped points of every node, per-point color
-//!   ratios and their per-node sums, and the input's mean mass.
+//!   optimal-transport map (same order), the box of the mapped points of every internal node,
+//!   per-point color ratios and their per-node sums, and the input's mean mass — each attribute in
+//!   full precision or quantized, or left out, as its storage descriptor ([`storage`]) records.
+//!   [`view::MapView`] decodes them whatever their precision.
 //!
 //! Every map names the key of the proxy it was baked against; a runtime refuses to blend maps of another
 //! proxy. The payload is checksummed (blake3) because rkyv's validation proves memory safety, not content.
@@ -34,7 +36,9 @@ pub mod header;
 pub mod map;
 pub mod open;
 pub mod proxy;
+pub mod storage;
 pub mod tree;
+pub mod view;
 #[cfg(feature = "write")]
 pub mod write;
 
@@ -47,7 +51,11 @@ pub const MAGIC: [u8; 8] = *b"OTBAKE\0\x01";
 
 /// Version of the archive layout. Bump on any change to the header or to an archived type; the
 /// runtime accepts exactly this version (no silent reinterpretation of older bytes).
-pub const FORMAT_VERSION: u32 = 1;
+///
+/// History: 1, every map attribute in `f32`, boxes and color sums of every node; 2, a storage
+/// descriptor ([`storage`]) with quantized and optional attributes, boxes and color sums of internal
+/// nodes only.
+pub const FORMAT_VERSION: u32 = 2;
 
 /// rkyv format flags the payload is written with, recorded in the header so that a reader built with
 /// other flags refuses the bytes instead of misreading them. Bit 0: little endian, bit 1: 32-bit

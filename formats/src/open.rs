@@ -3,6 +3,7 @@
 use crate::header::{Header, HEADER_LEN};
 use crate::map::ArchivedMap;
 use crate::proxy::ArchivedProxy;
+use crate::storage::{Precision, Storage};
 use crate::{tree, ArchiveKind, Composite, FormatError, ALIGN, COLOR_CHANNELS, MAX_DIM};
 use rkyv::rancor::Failure;
 
@@ -79,37 +80,103 @@ pub fn open_proxy(bytes: &[u8]) -> Result<&ArchivedProxy<'_>, FormatError> {
     Ok(p)
 }
 
-/// Opens map archive bytes: header, checksum, rkyv validation and field consistency.
+/// Opens map archive bytes: header, checksum, rkyv validation and field consistency, including
+/// every storage field: descriptor codes, the length of each bulk field for its precision, finite
+/// `f32` data, ordered `bounds` and `color_range` of finite extent, and (for positions quantized on
+/// `f32` boxes) boxes of finite extent, so that every decoded value is finite.
 pub fn open_map(bytes: &[u8]) -> Result<&ArchivedMap<'_>, FormatError> {
     let (_, payload) = payload(bytes, ArchiveKind::Map)?;
     let m = rkyv::api::low::access::<ArchivedMap, Failure>(payload)
         .map_err(|_| FormatError::Invalid)?;
     let (dim, n) = (m.dim.to_native(), m.n.to_native());
-    let nodes = check_sizes(dim, n, m.depth.to_native(), None)?;
+    let depth = m.depth.to_native();
+    check_sizes(dim, n, depth, None)?;
     let d = dim as usize;
-    check(m.positions.len() == n as usize * d, "positions")?;
-    check(m.node_boxes.len() == nodes * 2 * d, "node_boxes")?;
-    let has_color = !m.colors.is_empty();
-    check(
-        !has_color || m.colors.len() == n as usize * COLOR_CHANNELS,
-        "colors",
-    )?;
-    check(
-        m.node_colors.len() == if has_color { nodes * COLOR_CHANNELS } else { 0 },
-        "node_colors",
-    )?;
+    let n = n as usize;
+    let internal = tree::internal_count(depth) as usize;
+    let storage =
+        Storage::from_codes(m.storage).ok_or(FormatError::Inconsistent { field: "storage" })?;
     check(
         Composite::from_code(m.composite.to_native()).is_some(),
         "composite",
     )?;
     let mean = m.mean_mass.to_native();
     check(mean.is_finite() && mean > 0.0, "mean_mass")?;
+
+    check(m.bounds.len() == 2 * d, "bounds")?;
+    // Grids decode on `bounds` for u16 boxes, and for quantized positions of a one-leaf tree.
+    let bounds_grid =
+        storage.node_boxes.is_quantized() || (storage.positions.is_quantized() && depth == 0);
+    check(ordered_ranges(&m.bounds, d, bounds_grid), "bounds")?;
+    let color_quantized = matches!(storage.colors, Some(p) if p.is_quantized());
     check(
-        all_finite(&m.positions)
-            && all_finite(&m.node_boxes)
-            && all_finite(&m.colors)
-            && all_finite(&m.node_colors),
+        m.color_range.len() == if color_quantized { 6 } else { 0 },
+        "color_range",
+    )?;
+    check(ordered_ranges(&m.color_range, 3, true), "color_range")?;
+
+    check(
+        m.positions.len() == n * d * storage.positions.bytes(),
         "positions",
     )?;
+    let color_bytes = storage.colors.map_or(0, |p| p.bytes());
+    check(m.colors.len() == n * COLOR_CHANNELS * color_bytes, "colors")?;
+    check(
+        m.node_boxes.len() == internal * 2 * d * storage.node_boxes.bytes(),
+        "node_boxes",
+    )?;
+    check(
+        m.node_colors.len()
+            == if storage.node_colors {
+                internal * COLOR_CHANNELS
+            } else {
+                0
+            },
+        "node_colors",
+    )?;
+
+    if storage.positions == Precision::F32 {
+        check(all_finite_bytes(&m.positions), "positions")?;
+    }
+    if storage.colors == Some(Precision::F32) {
+        check(all_finite_bytes(&m.colors), "colors")?;
+    }
+    if storage.node_boxes == Precision::F32 {
+        check(all_finite_bytes(&m.node_boxes), "node_boxes")?;
+        if storage.positions.is_quantized() {
+            // Quantized positions decode on these boxes: their extents must be finite too.
+            let mut boxes = m.node_boxes.chunks_exact(8 * d);
+            check(
+                boxes.all(|b| (0..d).all(|k| (f32_at(b, d + k) - f32_at(b, k)).is_finite())),
+                "node_boxes",
+            )?;
+        }
+    }
+    check(all_finite(&m.node_colors), "node_colors")?;
     Ok(m)
+}
+
+/// `v` holds `lo[0..k]` then `hi[0..k]`, all finite, `lo <= hi`, with a finite extent if
+/// `grid` (something decodes on it), or is empty.
+fn ordered_ranges(v: &[rkyv::rend::f32_le], k: usize, grid: bool) -> bool {
+    v.is_empty()
+        || (v.len() == 2 * k
+            && (0..k).all(|a| {
+                let (lo, hi) = (v[a].to_native(), v[k + a].to_native());
+                lo.is_finite() && hi.is_finite() && lo <= hi && (!grid || (hi - lo).is_finite())
+            }))
+}
+
+/// The little-endian f32 at index `i` of `bytes` (0 past the end).
+fn f32_at(bytes: &[u8], i: usize) -> f32 {
+    match bytes.get(4 * i..4 * i + 4) {
+        Some(&[a, b, c, d]) => f32::from_le_bytes([a, b, c, d]),
+        _ => 0.0,
+    }
+}
+
+fn all_finite_bytes(bytes: &[u8]) -> bool {
+    bytes
+        .chunks_exact(4)
+        .all(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]).is_finite())
 }

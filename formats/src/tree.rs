@@ -41,6 +41,32 @@ pub fn node_count(depth: u32) -> u64 {
     (1u64 << (depth + 1)) - 1
 }
 
+/// Number of internal nodes (levels `0..depth`, heap indices `0..2^depth − 1`): the nodes whose boxes
+/// and color sums a map stores. Leaves (level `depth`) derive theirs from their points.
+pub fn internal_count(depth: u32) -> u64 {
+    (1u64 << depth) - 1
+}
+
+/// The leaf (level `depth`) holding point `i` of a tree over `n` points; the last leaf if `i >= n`.
+pub fn leaf_of(n: u32, depth: u32, i: u32) -> Node {
+    let mut node = Node::root(n);
+    while node.level < depth {
+        let (l, r) = node.children();
+        node = if i < r.start { l } else { r };
+    }
+    node
+}
+
+/// The `offset`-th node, left to right, of `level` (`offset < 2^level`) of a tree over `n` points.
+pub fn node_at(n: u32, level: u32, offset: u32) -> Node {
+    let mut node = Node::root(n);
+    for b in (0..level).rev() {
+        let (l, r) = node.children();
+        node = if (offset >> b) & 1 == 0 { l } else { r };
+    }
+    node
+}
+
 /// A node during traversal: heap index, point range and level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Node {
@@ -203,6 +229,22 @@ mod tests {
                 // Minimal depth: one level less would overflow some leaf.
                 if d > 0 {
                     assert!(n.div_ceil(1 << (d - 1)) > leaf);
+                }
+                for level in 0..=d {
+                    let mut next = 0;
+                    for offset in 0..1u32 << level {
+                        let node = node_at(n, level, offset);
+                        assert_eq!(node.level, level);
+                        assert_eq!(node.index, (1 << level) - 1 + offset);
+                        assert_eq!(node.start, next, "nodes of a level tile the points");
+                        next += node.count;
+                        if level == d {
+                            for i in node.range() {
+                                assert_eq!(leaf_of(n, d, i as u32), node);
+                            }
+                        }
+                    }
+                    assert_eq!(next, n);
                 }
             }
         }

@@ -3,53 +3,65 @@
 use otbake_formats::map::Map;
 use otbake_formats::open::{open_map, open_proxy};
 use otbake_formats::proxy::Proxy;
-use otbake_formats::tree::{depth, fill_node_boxes, fill_node_sums, node_count};
-use otbake_formats::write::{aligned_copy, encode_map, encode_proxy};
+use otbake_formats::storage::{Precision, Storage};
+use otbake_formats::tree::{depth, fill_node_boxes, internal_count, node_count};
+use otbake_formats::view::MapView;
+use otbake_formats::write::{
+    aligned_copy, encode_map, encode_map_content, encode_proxy, MapContent,
+};
 use otbake_formats::FormatError;
 
-fn sample_archives() -> (Vec<u8>, Vec<u8>) {
+fn content<'a>(pos: &'a [f32], colors: &'a [f32], d: u32) -> MapContent<'a> {
+    MapContent {
+        dim: 2,
+        depth: d,
+        proxy_key: [7; 32],
+        key: [9; 32],
+        composite: 0,
+        mean_mass: 0.5,
+        positions: pos,
+        colors,
+        solver_report: "none",
+        transport_cost: 0.0,
+    }
+}
+
+fn sample_data() -> (Vec<f32>, Vec<f32>, u32) {
     let n = 37u32;
-    let dim = 2;
-    let leaf = 4;
-    let d = depth(n, leaf);
-    let nodes = node_count(d) as usize;
-    let pos: Vec<f32> = (0..n as usize * dim)
+    let pos: Vec<f32> = (0..n as usize * 2)
         .map(|i| (i as f32 * 0.618).fract())
         .collect();
+    let colors: Vec<f32> = (0..n as usize * 3).map(|i| i as f32).collect();
+    (pos, colors, depth(n, 4))
+}
+
+fn sample_archives_with(storage: Storage) -> (Vec<u8>, Vec<u8>) {
+    let (pos, colors, d) = sample_data();
+    let n = 37u32;
+    let dim = 2;
+    let nodes = node_count(d) as usize;
     let mut boxes = vec![0.0; nodes * 2 * dim];
     fill_node_boxes(&pos, dim, d, &mut boxes);
     let proxy = Proxy {
         dim: dim as u32,
         n,
-        leaf_size: leaf,
+        leaf_size: 4,
         depth: d,
         key: [7; 32],
         description: "test",
         positions: &pos,
         node_boxes: &boxes,
     };
-    let colors: Vec<f32> = (0..n as usize * 3).map(|i| i as f32).collect();
-    let mut sums = vec![0.0; nodes * 3];
-    fill_node_sums(&colors, 3, d, &mut sums);
-    let map = Map {
-        dim: dim as u32,
-        n,
-        depth: d,
-        proxy_key: [7; 32],
-        key: [9; 32],
-        composite: 0,
-        mean_mass: 0.5,
-        positions: &pos,
-        colors: &colors,
-        node_boxes: &boxes,
-        node_colors: &sums,
-        solver_report: "none",
-        transport_cost: 0.0,
-    };
     (
         encode_proxy(&proxy).unwrap().to_vec(),
-        encode_map(&map).unwrap().to_vec(),
+        encode_map_content(&content(&pos, &colors, d), storage)
+            .unwrap()
+            .to_vec(),
     )
+}
+
+fn sample_archives() -> (Vec<u8>, Vec<u8>) {
+    sample_archives_with(Storage::FULL)
 }
 
 #[test]
@@ -66,6 +78,17 @@ fn round_trip() {
         map.node_colors[0].to_native(),
         (0..37).map(|i| 3 * i).sum::<i32>() as f32
     );
+    // Only internal nodes have stored boxes and sums.
+    let d = map.depth.to_native();
+    assert_eq!(map.node_boxes.len(), internal_count(d) as usize * 4 * 4);
+    assert_eq!(map.node_colors.len(), internal_count(d) as usize * 3);
+    // Full precision decodes to exactly what was written.
+    let (pos, colors, _) = sample_data();
+    let view = MapView::new(map).unwrap();
+    for i in 0..37 {
+        assert_eq!(&view.position(i)[..2], &pos[i * 2..i * 2 + 2]);
+        assert_eq!(&view.color(i)[..], &colors[i * 3..i * 3 + 3]);
+    }
     // A proxy is not a map.
     assert!(matches!(open_map(&p), Err(FormatError::WrongKind { .. })));
 }
@@ -89,11 +112,12 @@ fn damage_is_refused_without_panic() {
             );
         }
     }
+    // An archive of the previous format version (1: f32 only, stored leaf boxes) is refused.
     let mut v = m.clone();
-    v[8] = 2;
+    v[8] = 1;
     assert!(matches!(
         open_map(&aligned_copy(&v)),
-        Err(FormatError::WrongVersion { found: 2 })
+        Err(FormatError::WrongVersion { found: 1 })
     ));
     let mut t = m.clone();
     t.extend_from_slice(&[0; 16]);
@@ -101,4 +125,223 @@ fn damage_is_refused_without_panic() {
         open_map(&aligned_copy(&t)),
         Err(FormatError::LengthMismatch { .. })
     ));
+}
+
+#[test]
+fn every_storage_round_trips_within_its_bounds() {
+    let (pos, colors, _) = sample_data();
+    for positions in [Precision::F32, Precision::U16, Precision::U8] {
+        for node_boxes in [Precision::F32, Precision::U16] {
+            for c in [
+                None,
+                Some(Precision::F32),
+                Some(Precision::U16),
+                Some(Precision::U8),
+            ] {
+                for node_colors in [false, true] {
+                    let s = Storage {
+                        positions,
+                        node_boxes,
+                        colors: c,
+                        node_colors: node_colors && c.is_some(),
+                    };
+                    let (_, m) = sample_archives_with(s);
+                    let m = aligned_copy(&m);
+                    let view = MapView::open(&m).unwrap();
+                    assert_eq!(view.storage(), s);
+                    let cerr = view.color_error();
+                    for i in 0..37 {
+                        let (p, e) = (view.position(i), view.position_error(i));
+                        for k in 0..2 {
+                            assert!((p[k] - pos[i * 2 + k]).abs() <= e[k], "{s:?} point {i}");
+                        }
+                        let col = view.color(i);
+                        for ch in 0..3 {
+                            let full = if c.is_some() { colors[i * 3 + ch] } else { 0.0 };
+                            assert!((col[ch] - full).abs() <= cerr[ch], "{s:?} color {i}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Hand-forged archives whose storage fields disagree are refused with the field's name.
+#[test]
+fn inconsistent_storage_fields_are_refused() {
+    let (pos, _, d) = sample_data();
+    let internal = internal_count(d) as usize;
+    let boxes = vec![0u8; internal * 4 * 4];
+    let posb: Vec<u8> = pos.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let forge = |storage: [u8; 4],
+                 bounds: &[f32],
+                 color_range: &[f32],
+                 positions: &[u8],
+                 colors: &[u8],
+                 node_boxes: &[u8],
+                 node_colors: &[f32]| {
+        let bytes = encode_map(&Map {
+            dim: 2,
+            n: 37,
+            depth: d,
+            proxy_key: [7; 32],
+            key: [9; 32],
+            composite: 0,
+            mean_mass: 0.5,
+            storage,
+            bounds,
+            color_range,
+            positions,
+            colors,
+            node_boxes,
+            node_colors,
+            solver_report: "",
+            transport_cost: 0.0,
+        })
+        .unwrap();
+        match open_map(&bytes) {
+            Err(FormatError::Inconsistent { field }) => field,
+            other => panic!("expected a refusal, got {:?}", other.map(|_| ())),
+        }
+    };
+    let b = [0.0f32, 0.0, 1.0, 1.0];
+    let q8 = vec![0u8; 37 * 2];
+    let c8 = vec![0u8; 37 * 3];
+    let sums = vec![0.0f32; internal * 3];
+    assert_eq!(
+        forge([3, 0, 0, 0], &b, &[], &posb, &[], &boxes, &[]),
+        "storage"
+    );
+    assert_eq!(
+        forge([0, 0, 0, 1], &b, &[], &posb, &[], &boxes, &[]),
+        "storage"
+    );
+    assert_eq!(
+        forge([0, 0, 0, 0], &b[..3], &[], &posb, &[], &boxes, &[]),
+        "bounds"
+    );
+    assert_eq!(
+        forge(
+            [0, 0, 0, 0],
+            &[1.0, 0.0, 0.0, 1.0],
+            &[],
+            &posb,
+            &[],
+            &boxes,
+            &[]
+        ),
+        "bounds"
+    );
+    assert_eq!(
+        forge(
+            [0, 0, 0, 0],
+            &[f32::NAN, 0.0, 1.0, 1.0],
+            &[],
+            &posb,
+            &[],
+            &boxes,
+            &[]
+        ),
+        "bounds"
+    );
+    // An infinite extent is refused where a grid lies on it (u16 boxes), allowed where not.
+    let wide_bounds = [-f32::MAX, 0.0, f32::MAX, 1.0];
+    let boxes16 = vec![0u8; internal * 4 * 2];
+    assert_eq!(
+        forge([0, 1, 0, 0], &wide_bounds, &[], &posb, &[], &boxes16, &[]),
+        "bounds"
+    );
+    assert_eq!(
+        forge([2, 0, 0, 0], &b, &[], &posb, &[], &boxes, &[]),
+        "positions"
+    );
+    assert_eq!(
+        forge([0, 0, 3, 0], &b, &[], &posb, &c8, &boxes, &[]),
+        "color_range"
+    );
+    assert_eq!(
+        forge(
+            [0, 0, 3, 0],
+            &b,
+            &[1.0, 0.0, 0.0, 0.0, 1.0, 1.0],
+            &posb,
+            &c8,
+            &boxes,
+            &[]
+        ),
+        "color_range"
+    );
+    assert_eq!(
+        forge([0, 0, 3, 0], &b, &[0.0; 6], &posb, &c8[1..], &boxes, &[]),
+        "colors"
+    );
+    assert_eq!(
+        forge([0, 1, 0, 0], &b, &[], &posb, &[], &boxes, &[]),
+        "node_boxes"
+    );
+    assert_eq!(
+        forge([0, 0, 3, 1], &b, &[0.0; 6], &posb, &c8, &boxes, &sums[1..]),
+        "node_colors"
+    );
+    assert_eq!(
+        forge([0, 0, 3, 0], &b, &[0.0; 6], &posb, &c8, &boxes, &sums),
+        "node_colors"
+    );
+    let mut nan = sums.clone();
+    nan[0] = f32::INFINITY;
+    assert_eq!(
+        forge([0, 0, 3, 1], &b, &[0.0; 6], &posb, &c8, &boxes, &nan),
+        "node_colors"
+    );
+    // Quantized positions decode on f32 boxes: a box of infinite extent is refused.
+    let mut wide: Vec<f32> = vec![0.0; internal * 4];
+    wide[0] = -f32::MAX;
+    wide[2] = f32::MAX;
+    let wideb: Vec<u8> = wide.iter().flat_map(|v| v.to_le_bytes()).collect();
+    assert_eq!(
+        forge([2, 0, 0, 0], &b, &[], &q8, &[], &wideb, &[]),
+        "node_boxes"
+    );
+    // The same box under f32 positions is fine (nothing decodes on it).
+    let ok = encode_map(&Map {
+        dim: 2,
+        n: 37,
+        depth: d,
+        proxy_key: [7; 32],
+        key: [9; 32],
+        composite: 0,
+        mean_mass: 0.5,
+        storage: [0, 0, 0, 0],
+        bounds: &b,
+        color_range: &[],
+        positions: &posb,
+        colors: &[],
+        node_boxes: &wideb,
+        node_colors: &[],
+        solver_report: "",
+        transport_cost: 0.0,
+    })
+    .unwrap();
+    assert!(open_map(&ok).is_ok());
+    let ok = encode_map(&Map {
+        dim: 2,
+        n: 37,
+        depth: d,
+        proxy_key: [7; 32],
+        key: [9; 32],
+        composite: 0,
+        mean_mass: 0.5,
+        storage: [0, 0, 0, 0],
+        bounds: &wide_bounds,
+        color_range: &[],
+        positions: &posb,
+        colors: &[],
+        node_boxes: &boxes,
+        node_colors: &[],
+        solver_report: "",
+        transport_cost: 0.0,
+    })
+    .unwrap();
+    assert!(open_map(&ok).is_ok());
 }

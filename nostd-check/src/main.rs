@@ -40,6 +40,11 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
     let proxy = Proxy::open(bytes)?;
     let maps = [Map::open(bytes)?, Map::open(bytes)?];
     let blend = Blend::new(proxy, &maps)?;
+    // Stored values and their stated error bounds (decoders of every storage).
+    let stored = maps[0].position(1).map_or(0.0, |p| p[0])
+        + maps[0].position_error(1).map_or(0.0, |e| e[0])
+        + maps[0].max_position_error()[1]
+        + maps[0].color_error()[2];
     let w = core::hint::black_box([0.5f32, 0.5]);
     let kernel = Kernel { sigma: 0.01 };
     let p = blend.point(&w, &[0.5, 0.5], kernel)?;
@@ -79,5 +84,12 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
         Some(&mut color[..24]),
     )?;
     let q = prep.point(&[0.5, 0.5], kernel)?;
-    Ok(p.density + r.mass + s.position[0] + density[5] + color[7] + grid[3].density + q.mass)
+    Ok(p.density
+        + r.mass
+        + s.position[0]
+        + density[5]
+        + color[7]
+        + grid[3].density
+        + q.mass
+        + stored)
 }

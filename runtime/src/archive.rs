@@ -3,8 +3,10 @@
 use crate::error::Error;
 use crate::MAX_DIM;
 use otbake_formats::map::ArchivedMap;
-use otbake_formats::open::{open_map, open_proxy};
+use otbake_formats::open::open_proxy;
 use otbake_formats::proxy::ArchivedProxy;
+use otbake_formats::storage::Storage;
+use otbake_formats::view::MapView;
 use otbake_formats::Composite;
 
 /// An opened proxy archive. Opening checks header, checksum, rkyv validity and sizes once, so
@@ -60,24 +62,22 @@ impl<'a> Proxy<'a> {
     }
 }
 
-/// An opened map archive.
+/// An opened map archive, whatever its storage ([`Storage`]): queries decode quantized positions,
+/// boxes and colors through it (and [`crate::Blend::prepare`] decodes them once into `f32`).
 #[derive(Clone, Copy)]
 pub struct Map<'a> {
-    archived: &'a ArchivedMap<'a>,
+    view: MapView<'a>,
     composite: Composite,
 }
 
 impl<'a> Map<'a> {
     /// Opens map archive bytes (16-byte aligned).
     pub fn open(bytes: &'a [u8]) -> Result<Self, Error> {
-        let archived = open_map(bytes)?;
+        let view = MapView::open(bytes)?;
         // open_map validated the code; Additive is unreachable but keeps this panic-free.
-        let composite =
-            Composite::from_code(archived.composite.to_native()).unwrap_or(Composite::Additive);
-        Ok(Self {
-            archived,
-            composite,
-        })
+        let composite = Composite::from_code(view.archived().composite.to_native())
+            .unwrap_or(Composite::Additive);
+        Ok(Self { view, composite })
     }
 
     /// How the input's color is displayed.
@@ -87,31 +87,79 @@ impl<'a> Map<'a> {
 
     /// Mean of the input's mass channel.
     pub fn mean_mass(&self) -> f32 {
-        self.archived.mean_mass.to_native()
+        self.view.archived().mean_mass.to_native()
     }
 
     /// Whether points carry color ratios.
     pub fn has_color(&self) -> bool {
-        !self.archived.colors.is_empty()
+        self.view.has_color()
+    }
+
+    /// Whether nodes carry color sums (range queries of color need them).
+    pub fn has_node_colors(&self) -> bool {
+        self.view.has_node_colors()
+    }
+
+    /// What the archive stores, and at which precision.
+    pub fn storage(&self) -> Storage {
+        self.view.storage()
     }
 
     /// Dimension.
     pub fn dim(&self) -> usize {
-        self.archived.dim.to_native() as usize
+        self.view.dim()
     }
 
     /// Number of points.
     pub fn n(&self) -> u32 {
-        self.archived.n.to_native()
+        self.view.n()
+    }
+
+    /// Leaf level of the tree.
+    pub fn depth(&self) -> u32 {
+        self.view.depth()
     }
 
     /// Key of the proxy this map was baked against.
     pub fn proxy_key(&self) -> [u8; 32] {
-        self.archived.proxy_key
+        self.view.archived().proxy_key
+    }
+
+    /// Mapped point `i` (tree order) as stored (decoded); unused coordinates are 0. `None` past the
+    /// end. Finds the point's leaf: `O(depth)`.
+    pub fn position(&self, i: u32) -> Option<[f32; MAX_DIM]> {
+        (i < self.n()).then(|| self.view.position(i as usize))
+    }
+
+    /// Color ratio of point `i` as stored (decoded); `None` past the end or without colors.
+    pub fn color(&self, i: u32) -> Option<[f32; 3]> {
+        (i < self.n() && self.has_color()).then(|| self.view.color(i as usize))
+    }
+
+    /// The stated error of point `i`: per axis, the largest difference between its stored position
+    /// and the full-precision one it was quantized from (0 for `f32` positions). See
+    /// [`otbake_formats::storage`] for the bound.
+    pub fn position_error(&self, i: u32) -> Option<[f32; MAX_DIM]> {
+        (i < self.n()).then(|| self.view.position_error(i as usize))
+    }
+
+    /// The largest [`Map::position_error`] over all points, per axis (one pass over the tree).
+    pub fn max_position_error(&self) -> [f32; MAX_DIM] {
+        self.view.max_position_error()
+    }
+
+    /// The stated error of every color ratio, per channel (0 for `f32` colors or none).
+    pub fn color_error(&self) -> [f32; 3] {
+        self.view.color_error()
+    }
+
+    /// The decoding view (storage-independent reads of every stored attribute).
+    pub fn view(&self) -> &MapView<'a> {
+        &self.view
     }
 
     /// The archived data, for direct (read-only) access.
     pub fn archived(&self) -> &'a ArchivedMap<'a> {
-        self.archived
+        self.view.archived()
     }
 }

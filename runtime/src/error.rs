@@ -62,6 +62,14 @@ pub enum Error {
         /// The axis.
         axis: usize,
     },
+    /// Map `map` was baked without `attribute` (its manifest's `[storage]` left it out), which this
+    /// query needs.
+    MissingAttribute {
+        /// Index of the map.
+        map: usize,
+        /// What is missing, e.g. `"node color sums"`.
+        attribute: &'static str,
+    },
     /// `sample` index past the end.
     IndexOutOfRange {
         /// Index asked for.
@@ -108,6 +116,10 @@ impl fmt::Display for Error {
             Self::BadRegion { axis } => write!(
                 f,
                 "grid region leaves the grid on axis {axis}: resolutions must be >= 1 and start + size <= res"
+            ),
+            Self::MissingAttribute { map, attribute } => write!(
+                f,
+                "map {map} stores no {attribute} (left out by the `[storage]` section of its manifest), and this query needs them: rebake with them stored, or do not ask for them"
             ),
             Self::IndexOutOfRange { index, n } => write!(f, "sample index {index} is out of range: the blend has {n} points"),
         }

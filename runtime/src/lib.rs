@@ -11,11 +11,17 @@
 //! and region queries ([`Prepared::point_grid`], [`Prepared::splat_region`]) evaluate a whole box of
 //! grid cells in one traversal, so a renderer can hand bands or tiles to its own threads.
 //!
+//! Maps may be stored in full or quantized ([`Storage`]: `u16`/`u8` positions and colors, `u16`
+//! node boxes, optional colors and node color sums), and maps of any storage blend together: queries
+//! decode per read, [`Blend::prepare`] decodes once into its `f32` buffers. [`Map::position_error`]
+//! and [`Map::color_error`] state how far stored values may be from the full-precision ones; a query
+//! that needs an attribute a map left out returns [`Error::MissingAttribute`].
+//!
 //! The crate is `#![no_std]`, never allocates, contains no `unsafe`, and returns an error (never
 //! panics) for any archive bytes, weights or coordinates.
 //!
 //! ```
-//! # use otbake_formats::{map::Map as MapData, proxy::Proxy as ProxyData, tree, write};
+//! # use otbake_formats::{proxy::Proxy as ProxyData, tree, write};
 //! # fn archives() -> (rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>) {
 //! #     let pos = [0.25f32, 0.25, 0.75, 0.75];
 //! #     let d = tree::depth(2, 1);
@@ -24,11 +30,9 @@
 //! #     let p = write::encode_proxy(&ProxyData { dim: 2, n: 2, leaf_size: 1, depth: d, key: [1; 32],
 //! #         description: "", positions: &pos, node_boxes: &boxes }).unwrap();
 //! #     let map = |pos: &[f32]| {
-//! #         let mut b = vec![0.0; tree::node_count(d) as usize * 4];
-//! #         tree::fill_node_boxes(pos, 2, d, &mut b);
-//! #         write::encode_map(&MapData { dim: 2, n: 2, depth: d, proxy_key: [1; 32], key: [2; 32],
-//! #             composite: 0, mean_mass: 0.5, positions: pos, colors: &[], node_boxes: &b, node_colors: &[],
-//! #             solver_report: "", transport_cost: 0.0 }).unwrap()
+//! #         write::encode_map_content(&write::MapContent { dim: 2, depth: d, proxy_key: [1; 32],
+//! #             key: [2; 32], composite: 0, mean_mass: 0.5, positions: pos, colors: &[],
+//! #             solver_report: "", transport_cost: 0.0 }, otbake_formats::storage::Storage::FULL).unwrap()
 //! #     };
 //! #     (p, map(&[0.1, 0.1, 0.3, 0.3]), map(&[0.5, 0.5, 0.9, 0.9]))
 //! # }
@@ -78,6 +82,7 @@ pub use blend::{Blend, Sample};
 pub use error::Error;
 pub use grid::Region;
 pub use kernel::Kernel;
+pub use otbake_formats::storage::{Precision, Storage};
 pub use otbake_formats::{Composite, MAX_DIM};
 pub use point::PointValue;
 pub use prepared::{Prepared, PreparedBuffers, PreparedSizes};

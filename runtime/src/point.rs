@@ -49,18 +49,19 @@ pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointV
     let q = &q[..d];
     let mut sum = 0.0f32;
     let mut csum = [0.0f32; 3];
+    let mut leaf = s.leaf_state();
     let mut stack = Stack::new(Node::root(s.n()));
     while let Some(node) = stack.pop() {
         if node.count == 0 {
             continue;
         }
-        let (lo, hi) = s.node_box(node);
+        let (lo, hi) = s.node_box(node, &mut leaf);
         if box_distance2(q, &lo[..d], &hi[..d]) > kp.radius2 {
             continue;
         }
         if node.level >= s.depth() {
             for i in node.range() {
-                let y = s.position(i);
+                let y = s.position(&leaf, i);
                 let mut r2 = 0.0;
                 for k in 0..d {
                     let t = y[k] - q[k];

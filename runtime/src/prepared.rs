@@ -6,15 +6,14 @@
 //! queries compute on the fly, so a [`Prepared`] answers every query with exactly the bits the
 //! [`Blend`] returns for the same weights, and its boxes still contain its points.
 
-use crate::blend::{sample, Blend, Sample, Source};
+use crate::blend::{leaf_box, sample, Blend, Sample, Source};
 use crate::error::Error;
 use crate::kernel::Kernel;
 use crate::point::PointValue;
 use crate::range::RangeValue;
 use crate::splat::{check_target, SplatTarget};
 use crate::MAX_DIM;
-use otbake_formats::rkyv::rend::f32_le;
-use otbake_formats::tree::{node_count, Node};
+use otbake_formats::tree::{internal_count, node_at, node_count, Node};
 
 /// How many `f32` each buffer of [`PreparedBuffers`] needs (see [`Blend::prepared_sizes`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -25,7 +24,8 @@ pub struct PreparedSizes {
     pub colors: usize,
     /// `nodes · 2 · dim` blended node boxes.
     pub node_boxes: usize,
-    /// `nodes · 3` blended node color sums, or 0 when the blend has no color.
+    /// `nodes · 3` blended node color sums, or 0 when the blend has no color or some map stores no
+    /// node color sums (range queries then refuse).
     pub node_colors: usize,
 }
 
@@ -60,6 +60,7 @@ pub struct Prepared<'b> {
     pub(crate) n: u32,
     pub(crate) depth: u32,
     pub(crate) has_color: bool,
+    pub(crate) missing_node_colors: Option<usize>,
     pub(crate) mean_mass: f32,
     pub(crate) positions: &'b [f32],
     pub(crate) colors: &'b [f32],
@@ -67,36 +68,33 @@ pub struct Prepared<'b> {
     pub(crate) node_colors: &'b [f32],
 }
 
-/// `out[j] = Σ_k w_k src_k[j]`, in the order of `blend::mix` (map by map, starting from +0), so
-/// every entry has the bits `mix` computes for it; map-major so the loops stream and vectorize.
-fn mix_buffer<'x>(out: &mut [f32], weights: &[f32], maps: impl Iterator<Item = &'x [f32_le]>) {
-    let mut first = true;
-    for (&w, src) in weights.iter().zip(maps) {
-        if first && src.len() >= out.len() {
-            // `0.0 + w·v` straight into the buffer: the bits of `mix`'s first step, one pass.
-            for (o, v) in out.iter_mut().zip(src) {
-                *o = 0.0 + w * v.to_native();
-            }
-        } else {
-            if first {
-                out.fill(0.0);
-            }
-            if src.len() >= out.len() {
-                for (o, v) in out.iter_mut().zip(src) {
-                    *o += w * v.to_native();
-                }
-            } else {
-                // Unreachable for validated archives; mirrors `at`'s zero past the end.
-                for (j, o) in out.iter_mut().enumerate() {
-                    *o += w * src.get(j).map_or(0.0, |v| v.to_native());
-                }
-            }
+/// `out[j] (+)= w · v_j` for one map: with `first`, `0.0 + w·v` (the bits of `mix`'s first step) in
+/// one pass; entries the stream does not reach (none, for validated archives) become 0, as `mix`
+/// would leave them.
+fn mix_stream(out: &mut [f32], w: f32, first: bool, values: impl Iterator<Item = f32>) {
+    if first {
+        let mut len = 0;
+        for (o, v) in out.iter_mut().zip(values) {
+            *o = 0.0 + w * v;
+            len += 1;
         }
-        first = false;
+        if let Some(rest) = out.get_mut(len..) {
+            rest.fill(0.0);
+        }
+    } else {
+        for (o, v) in out.iter_mut().zip(values) {
+            *o += w * v;
+        }
     }
+}
+
+/// [`mix_stream`] for a decoder that adds `w · v` to every entry (quantized fields): zeroing first
+/// and then adding gives `0.0 + w·v` for the first map, the bits of `mix`.
+fn mix_decoded(out: &mut [f32], first: bool, add: impl FnOnce(&mut [f32])) {
     if first {
         out.fill(0.0);
     }
+    add(out);
 }
 
 impl<'a> Blend<'a, '_> {
@@ -105,17 +103,23 @@ impl<'a> Blend<'a, '_> {
         let n = self.n as usize;
         let nodes = node_count(self.depth) as usize;
         let c = if self.has_color { 3 } else { 0 };
+        let nc = if self.has_color && self.has_node_colors() {
+            3
+        } else {
+            0
+        };
         PreparedSizes {
             positions: n * self.dim,
             colors: n * c,
             node_boxes: nodes * 2 * self.dim,
-            node_colors: nodes * c,
+            node_colors: nodes * nc,
         }
     }
 
-    /// Mixes the blend for `weights` into `buffers` once, for as many queries as the caller likes.
-    /// Costs one pass over every map (about `k · (dim + 3) · n` multiply-adds); worth it from a few
-    /// hundred point queries on, or for any splat or region query.
+    /// Mixes the blend for `weights` into `buffers` once, for as many queries as the caller likes,
+    /// decoding quantized maps on the way (queries then read plain `f32` arrays). Costs one pass over
+    /// every map (about `k · (dim + 3) · n` multiply-adds) and one over the leaves; worth it from a
+    /// few hundred point queries on, or for any splat or region query.
     pub fn prepare<'b>(
         &self,
         weights: &[f32],
@@ -140,34 +144,70 @@ impl<'a> Blend<'a, '_> {
         let colors = take(colors, sizes.colors)?;
         let node_boxes = take(node_boxes, sizes.node_boxes)?;
         let node_colors = take(node_colors, sizes.node_colors)?;
-        let maps = self.maps;
-        mix_buffer(
-            positions,
-            weights,
-            maps.iter().map(|m| &m.archived().positions[..]),
-        );
-        mix_buffer(
-            node_boxes,
-            weights,
-            maps.iter().map(|m| &m.archived().node_boxes[..]),
-        );
-        if self.has_color {
-            mix_buffer(
-                colors,
-                weights,
-                maps.iter().map(|m| &m.archived().colors[..]),
-            );
-            mix_buffer(
-                node_colors,
-                weights,
-                maps.iter().map(|m| &m.archived().node_colors[..]),
-            );
+        let (d, depth) = (self.dim, self.depth);
+        let internal = internal_count(depth) as usize;
+        let (inner_boxes, _) = node_boxes.split_at_mut((internal * 2 * d).min(node_boxes.len()));
+        let (inner_colors, _) = node_colors.split_at_mut((internal * 3).min(node_colors.len()));
+        for (k, (&w, m)) in weights.iter().zip(self.maps).enumerate() {
+            let first = k == 0;
+            let v = m.view();
+            match v.positions_f32() {
+                Some(values) => mix_stream(positions, w, first, values),
+                None => mix_decoded(positions, first, |o| v.add_positions(w, o)),
+            }
+            match v.internal_boxes_f32() {
+                Some(values) => mix_stream(inner_boxes, w, first, values),
+                None => mix_decoded(inner_boxes, first, |o| v.add_internal_boxes(w, o)),
+            }
+            if self.has_color {
+                match v.colors_f32() {
+                    Some(values) => mix_stream(colors, w, first, values),
+                    None => mix_decoded(colors, first, |o| v.add_colors(w, o)),
+                }
+                if !inner_colors.is_empty() {
+                    mix_stream(inner_colors, w, first, v.internal_colors());
+                }
+            }
+        }
+        // Leaves: the box of their blended points and the sum of their blended colors, exactly as
+        // `Blend` computes them on the fly.
+        let read = |buf: &[f32], i: usize, len: usize| {
+            let mut out = [0.0; MAX_DIM];
+            if let Some(s) = buf.get(i * len..i * len + len) {
+                out[..len].copy_from_slice(s);
+            }
+            out
+        };
+        let with_sums = node_colors.len() >= node_count(depth) as usize * 3 && self.has_color;
+        for offset in 0..1u64 << depth {
+            let leaf = node_at(self.n, depth, offset as u32);
+            let at = leaf.index as usize;
+            let mut lo = [0.0; MAX_DIM];
+            let mut hi = [0.0; MAX_DIM];
+            leaf_box(d, leaf, |i| read(positions, i, d), &mut lo, &mut hi);
+            if let Some(b) = node_boxes.get_mut(at * 2 * d..(at + 1) * 2 * d) {
+                b[..d].copy_from_slice(&lo[..d]);
+                b[d..].copy_from_slice(&hi[..d]);
+            }
+            if with_sums {
+                let mut sum = [0.0f32; 3];
+                for i in leaf.range() {
+                    let c = read(colors, i, 3);
+                    for (s, v) in sum.iter_mut().zip(c) {
+                        *s += v;
+                    }
+                }
+                if let Some(o) = node_colors.get_mut(at * 3..at * 3 + 3) {
+                    o.copy_from_slice(&sum);
+                }
+            }
         }
         Ok(Prepared {
             dim: self.dim,
             n: self.n,
             depth: self.depth,
             has_color: self.has_color,
+            missing_node_colors: self.missing_node_colors,
             mean_mass: self.mean_mass(weights),
             positions,
             colors,
@@ -222,6 +262,12 @@ impl Prepared<'_> {
 
     /// [`Blend::range`] for the prepared weights (same result, bit for bit).
     pub fn range(&self, lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
+        if let Some(map) = self.missing_node_colors {
+            return Err(Error::MissingAttribute {
+                map,
+                attribute: "node color sums",
+            });
+        }
         let qlo = self.point_arg(lo)?;
         let qhi = self.point_arg(hi)?;
         Ok(crate::range::range(self, &qlo, &qhi))
@@ -248,6 +294,10 @@ impl Prepared<'_> {
 }
 
 impl Source for Prepared<'_> {
+    type Leaf = ();
+    fn leaf_state(&self) {}
+    #[inline]
+    fn enter(&self, _leaf: Node, _state: &mut ()) {}
     fn dim(&self) -> usize {
         self.dim
     }
@@ -264,7 +314,7 @@ impl Source for Prepared<'_> {
         self.mean_mass
     }
     #[inline]
-    fn position(&self, i: usize) -> [f32; MAX_DIM] {
+    fn position(&self, _state: &(), i: usize) -> [f32; MAX_DIM] {
         let d = self.dim;
         let mut out = [0.0; MAX_DIM];
         if let Some(s) = self.positions.get(i * d..i * d + d) {
@@ -280,7 +330,7 @@ impl Source for Prepared<'_> {
         }
     }
     #[inline]
-    fn node_box(&self, node: Node) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
+    fn node_box(&self, node: Node, _state: &mut ()) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
         let d = self.dim;
         let base = node.index as usize * 2 * d;
         let mut lo = [0.0; MAX_DIM];

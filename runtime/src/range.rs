@@ -22,8 +22,12 @@ impl Blend<'_, '_> {
     ///
     /// Nodes whose blended box lies inside the query are taken whole (their count and stored color
     /// sums), disjoint nodes are skipped, so the cost follows the box's boundary, not its area.
+    ///
+    /// A blend with color needs every map's node color sums: if one was baked without them
+    /// (`[storage] node_colors = false`), this returns [`Error::MissingAttribute`].
     pub fn range(&self, weights: &[f32], lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
         self.check_weights(weights)?;
+        self.check_node_colors()?;
         let qlo = self.point_arg(lo)?;
         let qhi = self.point_arg(hi)?;
         Ok(range(&self.weighted(weights), &qlo, &qhi))
@@ -35,12 +39,13 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
     let d = s.dim();
     let mut count = 0u32;
     let mut csum = [0.0f32; 3];
+    let mut leaf = s.leaf_state();
     let mut stack = Stack::new(Node::root(s.n()));
     while let Some(node) = stack.pop() {
         if node.count == 0 {
             continue;
         }
-        let (blo, bhi) = s.node_box(node);
+        let (blo, bhi) = s.node_box(node, &mut leaf);
         if (0..d).any(|k| blo[k] > qhi[k] || bhi[k] < qlo[k]) {
             continue;
         }
@@ -54,7 +59,7 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
         }
         if node.level >= s.depth() {
             for i in node.range() {
-                let y = s.position(i);
+                let y = s.position(&leaf, i);
                 if (0..d).all(|k| y[k] >= qlo[k] && y[k] <= qhi[k]) {
                     count += 1;
                     let c = s.color(i);

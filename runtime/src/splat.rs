@@ -93,8 +93,21 @@ pub(crate) fn splat(
         stride[k] = step;
         step *= res[k] as usize;
     }
-    for i in 0..s.n() as usize {
-        let y = s.position(i);
+    // Points in index order, leaf by leaf (a point's leaf locates its stored grid).
+    let depth = s.depth();
+    let leaves = 1u64 << depth;
+    let points = (0..leaves).flat_map(|offset| {
+        let leaf = otbake_formats::tree::node_at(s.n(), depth, offset as u32);
+        leaf.range().map(move |i| (leaf, i))
+    });
+    let mut state = s.leaf_state();
+    let mut entered = None;
+    for (leaf, i) in points {
+        if entered != Some(leaf.index) {
+            s.enter(leaf, &mut state);
+            entered = Some(leaf.index);
+        }
+        let y = s.position(&state, i);
         let c = s.color(i);
         // Cells whose centers can lie within the radius, clamped to the grid.
         let mut first = [0usize; MAX_DIM];

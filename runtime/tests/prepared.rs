@@ -1,11 +1,12 @@
 //! A prepared blend answers every query with exactly the bits of the blend it was prepared from, and
 //! region queries (one traversal per box of cells) equal per-cell point queries and the full splat
-//! exactly (property tests; every comparison is on the `f32` bit patterns).
+//! exactly (property tests over full and quantized storages; every comparison is on the `f32` bit
+//! patterns).
 #![allow(clippy::needless_range_loop)]
 
 mod common;
 
-use common::{fixture, weights, Fixture, Rng};
+use common::{fixture, fixture_with, weights, Fixture, Rng, STORAGES};
 use otbake_runtime::{
     Blend, Error, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region, SplatTarget,
     MAX_DIM,
@@ -98,8 +99,9 @@ proptest! {
 
     #[test]
     fn prepared_queries_equal_blend_queries(seed in 0u64..1000, n in 1usize..300, dim in 1usize..=4,
-                                            leaf in 1u32..8, k in 1usize..4, sigma in 0.01f32..0.3) {
-        let f = fixture(seed, n, dim, leaf, k, [1; 32]);
+                                            leaf in 1u32..8, k in 1usize..4, sigma in 0.01f32..0.3,
+                                            st in 0..STORAGES.len()) {
+        let f = fixture_with(seed, n, dim, leaf, k, [1; 32], STORAGES[st]);
         let (proxy, maps) = open(&f);
         let blend = Blend::new(proxy, &maps).unwrap();
         let mut rng = Rng(seed ^ 0x5eed);
@@ -146,8 +148,9 @@ proptest! {
 
     #[test]
     fn point_grids_equal_point_queries(seed in 0u64..1000, n in 1usize..300, dim in 1usize..=4,
-                                       leaf in 1u32..8, k in 1usize..4, sigma_cells in 0.2f32..3.0) {
-        let f = fixture(seed, n, dim, leaf, k, [1; 32]);
+                                       leaf in 1u32..8, k in 1usize..4, sigma_cells in 0.2f32..3.0,
+                                            st in 0..STORAGES.len()) {
+        let f = fixture_with(seed, n, dim, leaf, k, [1; 32], STORAGES[st]);
         let (proxy, maps) = open(&f);
         let blend = Blend::new(proxy, &maps).unwrap();
         let mut rng = Rng(seed ^ 0x9e1d);
@@ -170,8 +173,9 @@ proptest! {
 
     #[test]
     fn region_splats_equal_the_full_splat(seed in 0u64..1000, n in 1usize..300, dim in 1usize..=4,
-                                          leaf in 1u32..8, k in 1usize..4, sigma_cells in 0.2f32..3.0) {
-        let f = fixture(seed, n, dim, leaf, k, [1; 32]);
+                                          leaf in 1u32..8, k in 1usize..4, sigma_cells in 0.2f32..3.0,
+                                            st in 0..STORAGES.len()) {
+        let f = fixture_with(seed, n, dim, leaf, k, [1; 32], STORAGES[st]);
         let (proxy, maps) = open(&f);
         let blend = Blend::new(proxy, &maps).unwrap();
         let mut rng = Rng(seed ^ 0x5917);

@@ -423,14 +423,17 @@ fn extreme_values_never_panic() {
     let colors: Vec<f32> = (0..n * 3).map(|i| ext[(i * 7) % ext.len()] / 4.0).collect();
     let d = tree::depth(n as u32, 2);
     let nodes = tree::node_count(d) as usize;
+    let internal = tree::internal_count(d) as usize;
     let mut boxes = vec![0.0; nodes * 4];
     tree::fill_node_boxes(&pos, 2, d, &mut boxes);
     let mut sums = vec![0.0; nodes * 3];
     tree::fill_node_sums(&colors, 3, d, &mut sums);
-    let sums: Vec<f32> = sums
+    let sums: Vec<f32> = sums[..internal * 3]
         .iter()
         .map(|v| if v.is_finite() { *v } else { f32::MAX })
         .collect();
+    let bytes = |v: &[f32]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
+    let bounds = [boxes[0], boxes[1], boxes[2], boxes[3]];
     let pb = write::encode_proxy(&ProxyData {
         dim: 2,
         n: n as u32,
@@ -450,9 +453,12 @@ fn extreme_values_never_panic() {
         key: [4; 32],
         composite: 0,
         mean_mass: f32::MAX,
-        positions: &pos,
-        colors: &colors,
-        node_boxes: &boxes,
+        storage: otbake_formats::storage::Storage::FULL.to_codes(),
+        bounds: &bounds,
+        color_range: &[],
+        positions: &bytes(&pos),
+        colors: &bytes(&colors),
+        node_boxes: &bytes(&boxes[..internal * 4]),
         node_colors: &sums,
         solver_report: "",
         transport_cost: 0.0,

@@ -9,7 +9,7 @@
 use otbake_formats::header::{Header, HEADER_LEN};
 use otbake_formats::write::aligned_copy;
 use otbake_formats::ArchiveKind;
-use otbake_runtime::{Blend, Kernel, Map, Proxy, SplatTarget};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget};
 
 /// SplitMix64: tiny, seedable, good enough for choosing mutations.
 pub struct Rng(pub u64);
@@ -125,6 +125,12 @@ pub fn exercise(rng: &mut Rng, proxy: &[u8], maps: &[&[u8]]) -> usize {
     let p = Proxy::open(&proxy);
     let ms: Vec<Map<'_>> = map_bytes.iter().filter_map(|b| Map::open(b).ok()).collect();
     opened += p.is_ok() as usize + ms.len().min(1);
+    // Every map's stored-attribute reads and stated error bounds (decoders of any storage).
+    for m in &ms {
+        let i = rng.next_u64() as u32 % (m.n() + 2);
+        let _ = (m.position(i), m.color(i), m.position_error(i));
+        let _ = (m.max_position_error(), m.color_error(), m.storage());
+    }
     let Ok(p) = p else { return opened };
     let Ok(blend) = Blend::new(p, &ms) else {
         return opened;
@@ -168,6 +174,48 @@ pub fn exercise(rng: &mut Rng, proxy: &[u8], maps: &[&[u8]]) -> usize {
                 color: Some(&mut color),
             },
         );
+    }
+    // Prepared once (decoding every map into f32 buffers), then its queries.
+    let sizes = blend.prepared_sizes();
+    let short = rng.below(10) == 0;
+    let mut bufs = [
+        vec![0.0f32; sizes.positions],
+        vec![0.0f32; sizes.colors],
+        vec![0.0f32; sizes.node_boxes.saturating_sub(short as usize)],
+        vec![0.0f32; sizes.node_colors],
+    ];
+    let [bp, bc, bb, bn] = &mut bufs;
+    let raw: Vec<f32> = (0..k)
+        .map(|_| (rng.next_u64() % 100) as f32 + 1.0)
+        .collect();
+    let sum: f32 = raw.iter().sum();
+    let w: Vec<f32> = raw.iter().map(|v| v / sum).collect();
+    let prepared = blend.prepare(
+        &w,
+        PreparedBuffers {
+            positions: bp,
+            colors: bc,
+            node_boxes: bb,
+            node_colors: bn,
+        },
+    );
+    if let Ok(prep) = prepared {
+        let kernel = Kernel {
+            sigma: [0.05, 0.2, rng.float().abs()][rng.below(3)],
+        };
+        let pt: Vec<f32> = (0..d).map(|_| rng.float()).collect();
+        let _ = prep.point(&pt, kernel);
+        let _ = prep.range(&pt, &pt);
+        let _ = prep.sample(rng.next_u64() as u32 % (prep.n() + 2));
+        let r = 1 + rng.below(5) as u32;
+        let mut res = [1u32; 4];
+        res[..d].fill(r);
+        let cells = (r as usize).pow(d as u32);
+        let mut grid = vec![PointValue::default(); cells];
+        let _ = prep.point_grid(kernel, Region::full(res), &mut grid);
+        let mut density = vec![0.0f32; cells];
+        let mut color = vec![0.0f32; cells * 3];
+        let _ = prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color));
     }
     opened
 }

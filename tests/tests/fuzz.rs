@@ -2,7 +2,8 @@
 //! (the same one `otbake-fuzz` runs for hours) finds nothing. `OTBAKE_WRITE_FUZZ_CORPUS=1` rewrites the
 //! corpus from small real bakes plus synthetic 1D/3D/4D archives.
 
-use otbake_formats::{map::Map as MapData, proxy::Proxy as ProxyData, tree, write};
+use otbake_formats::storage::{Precision, Storage};
+use otbake_formats::{proxy::Proxy as ProxyData, tree, write};
 use otbake_tests::fuzz::{exercise, mutate, Rng};
 use otbake_tests::{fuzz_corpus, otbake_ok, repo_root, scratch, shared_data, write_manifest};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -12,7 +13,7 @@ fn corpus_dir() -> std::path::PathBuf {
     repo_root().join("tests/fuzz/corpus")
 }
 
-fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool) {
+fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool, storage: Storage) {
     std::fs::create_dir_all(dir).unwrap();
     let mut rng = Rng(dim as u64 * 100 + n as u64);
     let depth = tree::depth(n as u32, 2);
@@ -41,27 +42,21 @@ fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool) {
         } else {
             vec![]
         };
-        let mut b = vec![0.0; nodes * 2 * dim];
-        tree::fill_node_boxes(&pos, dim, depth, &mut b);
-        let mut sums = vec![0.0; if color { nodes * 3 } else { 0 }];
-        if color {
-            tree::fill_node_sums(&colors, 3, depth, &mut sums);
-        }
-        let bytes = write::encode_map(&MapData {
-            dim: dim as u32,
-            n: n as u32,
-            depth,
-            proxy_key: key,
-            key: [m as u8; 32],
-            composite: (m % 3) as u32,
-            mean_mass: 0.3,
-            positions: &pos,
-            colors: &colors,
-            node_boxes: &b,
-            node_colors: &sums,
-            solver_report: "fuzz",
-            transport_cost: 0.0,
-        })
+        let bytes = write::encode_map_content(
+            &write::MapContent {
+                dim: dim as u32,
+                depth,
+                proxy_key: key,
+                key: [m as u8; 32],
+                composite: (m % 3) as u32,
+                mean_mass: 0.3,
+                positions: &pos,
+                colors: &colors,
+                solver_report: "fuzz",
+                transport_cost: 0.0,
+            },
+            storage,
+        )
         .unwrap();
         std::fs::write(dir.join(format!("m{m}.otb")), &bytes).unwrap();
     }
@@ -94,9 +89,49 @@ fn write_corpus_when_asked() {
         )
         .unwrap();
     }
-    synthetic(&corpus.join("synthetic-1d"), 1, 17, 2, true);
-    synthetic(&corpus.join("synthetic-3d"), 3, 33, 3, false);
-    synthetic(&corpus.join("synthetic-4d"), 4, 9, 1, true);
+    // The same bake stored compact.
+    write_manifest(
+        &dir,
+        "m.toml",
+        &format!("{body}[storage]\npreset = \"compact\"\n"),
+    );
+    otbake_ok(&dir, &["bake", "m.toml"]);
+    let real = corpus.join("shapes-2d-compact");
+    std::fs::create_dir_all(&real).unwrap();
+    for f in ["proxy", "duck", "heart"] {
+        std::fs::copy(
+            dir.join(format!("out/{f}.otb")),
+            real.join(format!("{f}.otb")),
+        )
+        .unwrap();
+    }
+    synthetic(&corpus.join("synthetic-1d"), 1, 17, 2, true, Storage::FULL);
+    synthetic(&corpus.join("synthetic-3d"), 3, 33, 3, false, Storage::FULL);
+    synthetic(&corpus.join("synthetic-4d"), 4, 9, 1, true, Storage::FULL);
+    // Quantized storage: every code path of the decoders (u8 and u16 positions and colors, u16
+    // boxes, missing node color sums, a single-leaf tree decoding on `bounds`).
+    synthetic(&corpus.join("compact-2d"), 2, 45, 2, true, Storage::COMPACT);
+    synthetic(
+        &corpus.join("u16-3d"),
+        3,
+        29,
+        2,
+        true,
+        Storage {
+            positions: Precision::U16,
+            node_boxes: Precision::F32,
+            colors: Some(Precision::U16),
+            node_colors: false,
+        },
+    );
+    synthetic(
+        &corpus.join("compact-1leaf-2d"),
+        2,
+        2,
+        2,
+        true,
+        Storage::COMPACT,
+    );
 }
 
 #[test]

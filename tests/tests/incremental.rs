@@ -112,6 +112,23 @@ fn each_edit_rebuilds_exactly_what_it_affects() {
     std::fs::write(&m, body(1500, 0, "step = 0.35", &SHAPES)).unwrap();
     expect(&run(&m), &["heart", "duck", "tooth"]);
 
+    // A storage setting: every map, not the proxy (the proxy is always stored in full); going back
+    // is a store hit with the same bytes.
+    let full = std::fs::read(dir.join("out/heart.otb")).unwrap();
+    let compact = body(1500, 0, "step = 0.35", &SHAPES) + "[storage]\npreset = \"compact\"\n";
+    std::fs::write(&m, compact).unwrap();
+    expect(&run(&m), &["heart", "duck", "tooth"]);
+    let small = std::fs::read(dir.join("out/heart.otb")).unwrap();
+    assert!(
+        small.len() * 2 < full.len(),
+        "{} vs {}",
+        small.len(),
+        full.len()
+    );
+    std::fs::write(&m, body(1500, 0, "step = 0.35", &SHAPES)).unwrap();
+    expect(&run(&m), &[]);
+    assert_eq!(std::fs::read(dir.join("out/heart.otb")).unwrap(), full);
+
     // A proxy setting: the proxy and every map.
     std::fs::write(&m, body(1500, 1, "step = 0.35", &SHAPES)).unwrap();
     expect(&run(&m), &["proxy", "heart", "duck", "tooth"]);

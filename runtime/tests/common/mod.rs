@@ -2,10 +2,10 @@
 //! depend on how well the tree fits the points, only on its boxes being right).
 #![allow(dead_code, clippy::needless_range_loop)]
 
-use otbake_formats::map::Map as MapData;
 use otbake_formats::proxy::Proxy as ProxyData;
-use otbake_formats::tree::{depth, fill_node_boxes, fill_node_sums, node_count};
-use otbake_formats::write::{encode_map, encode_proxy};
+use otbake_formats::storage::{Precision, Storage};
+use otbake_formats::tree::{depth, fill_node_boxes, node_count};
+use otbake_formats::write::{encode_map_content, encode_proxy, MapContent};
 use rkyv::util::AlignedVec;
 
 /// A tiny deterministic generator (SplitMix64) so tests need no RNG dependency.
@@ -35,7 +35,45 @@ pub struct Fixture {
     pub mean_mass: Vec<f32>,
 }
 
+/// Storages property tests run over: full, compact, and mixes of every precision (all keeping
+/// node color sums, so every query answers).
+pub const STORAGES: [Storage; 5] = [
+    Storage::FULL,
+    Storage::COMPACT,
+    Storage {
+        positions: Precision::U16,
+        node_boxes: Precision::U16,
+        colors: Some(Precision::U16),
+        node_colors: true,
+    },
+    Storage {
+        positions: Precision::U8,
+        node_boxes: Precision::F32,
+        colors: Some(Precision::F32),
+        node_colors: true,
+    },
+    Storage {
+        positions: Precision::F32,
+        node_boxes: Precision::U16,
+        colors: Some(Precision::U8),
+        node_colors: true,
+    },
+];
+
 pub fn fixture(seed: u64, n: usize, dim: usize, leaf: u32, k: usize, key: [u8; 32]) -> Fixture {
+    fixture_with(seed, n, dim, leaf, k, key, Storage::FULL)
+}
+
+/// A fixture whose maps are stored per `storage` (`positions`/`colors` keep the full values).
+pub fn fixture_with(
+    seed: u64,
+    n: usize,
+    dim: usize,
+    leaf: u32,
+    k: usize,
+    key: [u8; 32],
+    storage: Storage,
+) -> Fixture {
     let mut rng = Rng(seed);
     let d = depth(n as u32, leaf);
     let nodes = node_count(d) as usize;
@@ -71,27 +109,23 @@ pub fn fixture(seed: u64, n: usize, dim: usize, leaf: u32, k: usize, key: [u8; 3
             })
             .collect();
         let colors: Vec<f32> = (0..n * 3).map(|_| rng.unit() * 2.0).collect();
-        let mut b = vec![0.0; nodes * 2 * dim];
-        fill_node_boxes(&pos, dim, d, &mut b);
-        let mut sums = vec![0.0; nodes * 3];
-        fill_node_sums(&colors, 3, d, &mut sums);
         let mean = 0.1 + rng.unit();
         f.maps.push(
-            encode_map(&MapData {
-                dim: dim as u32,
-                n: n as u32,
-                depth: d,
-                proxy_key: key,
-                key: [m as u8; 32],
-                composite: 0,
-                mean_mass: mean,
-                positions: &pos,
-                colors: &colors,
-                node_boxes: &b,
-                node_colors: &sums,
-                solver_report: "",
-                transport_cost: 0.0,
-            })
+            encode_map_content(
+                &MapContent {
+                    dim: dim as u32,
+                    depth: d,
+                    proxy_key: key,
+                    key: [m as u8; 32],
+                    composite: 0,
+                    mean_mass: mean,
+                    positions: &pos,
+                    colors: &colors,
+                    solver_report: "",
+                    transport_cost: 0.0,
+                },
+                storage,
+            )
             .unwrap(),
         );
         f.positions.push(pos);
