@@ -15,8 +15,11 @@
 //! seed = 0
 //!
 //! [solver]
-//! kind = "sliced"               # exact | sliced
-//! iterations = 200             # sliced: iterations (default 200)
+//! kind = "sinkhorn"             # sinkhorn | exact | sliced
+//! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
+//! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
+//! # blur_spacing = 1.0, scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 12.0
+//! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0
 //!
 //! [[input]]
 //! name = "duck"
@@ -36,7 +39,7 @@
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
-use crate::solve::{ExactSettings, SlicedSettings, SolverSettings};
+use crate::solve::{ExactSettings, MapKind, SinkhornSettings, SlicedSettings, SolverSettings};
 use otbake_formats::storage::{Precision, Storage};
 use serde::Deserialize;
 use std::fmt;
@@ -372,19 +375,100 @@ impl Manifest {
 
         let s = &raw.solver;
         let skind = *s.kind.get_ref();
+        // Every key belongs to some solver kinds; a key of another kind is an error, not ignored.
+        let span = |v: Option<Range<usize>>| v;
+        let keys: [(Option<Range<usize>>, &str, &[SolverKind]); 12] = [
+            (
+                span(s.iterations.as_ref().map(|v| v.span())),
+                "iterations",
+                &[SolverKind::Sliced],
+            ),
+            (
+                span(s.step.as_ref().map(|v| v.span())),
+                "step",
+                &[SolverKind::Sliced],
+            ),
+            (
+                span(s.seed.as_ref().map(|v| v.span())),
+                "seed",
+                &[SolverKind::Sliced],
+            ),
+            (
+                span(s.max_n.as_ref().map(|v| v.span())),
+                "max_n",
+                &[SolverKind::Exact],
+            ),
+            (
+                span(s.blur.as_ref().map(|v| v.span())),
+                "blur",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.blur_spacing.as_ref().map(|v| v.span())),
+                "blur_spacing",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.scaling.as_ref().map(|v| v.span())),
+                "scaling",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.tolerance.as_ref().map(|v| v.span())),
+                "tolerance",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.max_iterations.as_ref().map(|v| v.span())),
+                "max_iterations",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.truncate.as_ref().map(|v| v.span())),
+                "truncate",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.map.as_ref().map(|v| v.span())),
+                "map",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.overrelaxation.as_ref().map(|v| v.span())),
+                "overrelaxation",
+                &[SolverKind::Sinkhorn],
+            ),
+        ];
+        for (span, key, kinds) in keys {
+            if let Some(span) = span {
+                if !kinds.contains(&skind) {
+                    return Err(at(
+                        Some(span),
+                        format!(
+                            "`solver.{key}` applies only to kind = \"{}\": remove it",
+                            kinds[0].name()
+                        ),
+                    ));
+                }
+            }
+        }
+        // A number in a range, or an error at its span.
+        let real = |v: &Option<Spanned<f64>>,
+                    key: &str,
+                    ok: &dyn Fn(f64) -> bool,
+                    what: &str|
+         -> Result<Option<f64>, ManifestError> {
+            match v {
+                None => Ok(None),
+                Some(x) if ok(*x.get_ref()) => Ok(Some(*x.get_ref())),
+                Some(x) => Err(at(
+                    Some(x.span()),
+                    format!("`solver.{key}` = {} must be {what}", x.get_ref()),
+                )),
+            }
+        };
         let solver = match skind {
             SolverKind::Exact => {
-                for (span, key) in [
-                    (s.iterations.as_ref().map(|v| v.span()), "iterations"),
-                    (s.step.as_ref().map(|v| v.span()), "step"),
-                ] {
-                    if let Some(span) = span {
-                        return Err(at(
-                            Some(span),
-                            format!("`solver.{key}` applies only to kind = \"sliced\": remove it"),
-                        ));
-                    }
-                }
                 let mut e = ExactSettings::default();
                 if let Some(m) = &s.max_n {
                     e.max_n = *m.get_ref() as usize;
@@ -392,12 +476,6 @@ impl Manifest {
                 SolverSettings::Exact(e)
             }
             SolverKind::Sliced => {
-                if let Some(m) = &s.max_n {
-                    return Err(at(
-                        Some(m.span()),
-                        "`solver.max_n` applies only to kind = \"exact\": remove it".into(),
-                    ));
-                }
                 let mut sl = SlicedSettings::default();
                 if let Some(it) = &s.iterations {
                     if *it.get_ref() == 0 || *it.get_ref() > 100_000 {
@@ -408,20 +486,79 @@ impl Manifest {
                     }
                     sl.iterations = *it.get_ref();
                 }
-                if let Some(seed) = s.seed {
-                    sl.seed = seed;
+                if let Some(seed) = &s.seed {
+                    sl.seed = *seed.get_ref();
                 }
-                if let Some(step) = &s.step {
-                    let v = *step.get_ref();
-                    if !(v.is_finite() && v > 0.0 && v <= 1.0) {
-                        return Err(at(
-                            Some(step.span()),
-                            format!("`solver.step` = {v} must be in (0, 1]"),
-                        ));
-                    }
+                if let Some(v) = real(&s.step, "step", &|v| v > 0.0 && v <= 1.0, "in (0, 1]")? {
                     sl.step = v;
                 }
                 SolverSettings::Sliced(sl)
+            }
+            SolverKind::Sinkhorn => {
+                let mut sk = SinkhornSettings::default();
+                let pos = |v: f64| v.is_finite() && v > 0.0;
+                sk.blur = real(
+                    &s.blur,
+                    "blur",
+                    &pos,
+                    "a positive length in the unit cube (e.g. 0.002)",
+                )?;
+                if let Some(v) = real(
+                    &s.blur_spacing,
+                    "blur_spacing",
+                    &pos,
+                    "a positive multiple of the point spacing",
+                )? {
+                    sk.blur_spacing = v;
+                }
+                if let Some(v) = real(
+                    &s.scaling,
+                    "scaling",
+                    &|v| v > 0.0 && v < 1.0,
+                    "in (0, 1) (0.5 halves the blur per stage)",
+                )? {
+                    sk.scaling = v;
+                }
+                if let Some(v) = real(
+                    &s.tolerance,
+                    "tolerance",
+                    &|v| v > 0.0 && v < 1.0,
+                    "in (0, 1) (L1 marginal error)",
+                )? {
+                    sk.tolerance = v;
+                }
+                if let Some(v) = real(
+                    &s.truncate,
+                    "truncate",
+                    &|v| v.is_finite() && v >= 1.0,
+                    "at least 1 (default 12)",
+                )? {
+                    sk.truncate = v;
+                }
+                if let Some(v) = real(
+                    &s.overrelaxation,
+                    "overrelaxation",
+                    &|v| (1.0..2.0).contains(&v),
+                    "in [1, 2)",
+                )? {
+                    sk.overrelaxation = v;
+                }
+                if let Some(it) = &s.max_iterations {
+                    if *it.get_ref() == 0 {
+                        return Err(at(
+                            Some(it.span()),
+                            "`solver.max_iterations` must be at least 1".into(),
+                        ));
+                    }
+                    sk.max_iterations = *it.get_ref();
+                }
+                if let Some(m) = &s.map {
+                    sk.map = match m.get_ref() {
+                        RawMapKind::Assignment => MapKind::Assignment,
+                        RawMapKind::Barycentric => MapKind::Barycentric,
+                    };
+                }
+                SolverSettings::Sinkhorn(sk)
             }
         };
 
@@ -585,6 +722,17 @@ struct RawProxy {
 enum SolverKind {
     Exact,
     Sliced,
+    Sinkhorn,
+}
+
+impl SolverKind {
+    fn name(self) -> &'static str {
+        match self {
+            SolverKind::Exact => "exact",
+            SolverKind::Sliced => "sliced",
+            SolverKind::Sinkhorn => "sinkhorn",
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -593,8 +741,23 @@ struct RawSolver {
     kind: Spanned<SolverKind>,
     iterations: Option<Spanned<u32>>,
     step: Option<Spanned<f64>>,
-    seed: Option<u64>,
+    seed: Option<Spanned<u64>>,
     max_n: Option<Spanned<u64>>,
+    blur: Option<Spanned<f64>>,
+    blur_spacing: Option<Spanned<f64>>,
+    scaling: Option<Spanned<f64>>,
+    tolerance: Option<Spanned<f64>>,
+    max_iterations: Option<Spanned<u32>>,
+    truncate: Option<Spanned<f64>>,
+    map: Option<Spanned<RawMapKind>>,
+    overrelaxation: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum RawMapKind {
+    Assignment,
+    Barycentric,
 }
 
 #[derive(Deserialize)]

@@ -39,7 +39,7 @@ pub(super) fn solve(
             solver: NAME,
             n,
             max,
-            hint: "use solver kind = \"sliced\" (or the scalable solver), or raise max_n (time grows like n^2 to n^3)",
+            hint: "use solver kind = \"sinkhorn\" (near-exact, scales to millions of points), or raise max_n (time grows like n^2 to n^3)",
         });
     }
     let dim = problem.dim;

@@ -52,13 +52,13 @@ pub enum SolverSettings {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExactSettings {
     /// Refuse larger problems: time grows roughly like n²–n³ (about 1.5 s at n = 5000 in release on
-    /// the 2-core build machine). Default 6000.
+    /// the 2-core build machine). Default 10 000.
     pub max_n: usize,
 }
 
 impl Default for ExactSettings {
     fn default() -> Self {
-        Self { max_n: 6000 }
+        Self { max_n: 10_000 }
     }
 }
 

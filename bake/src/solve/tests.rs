@@ -148,7 +148,7 @@ fn settings_name_and_fingerprint() {
     let [e, s] = all_settings();
     assert_eq!(e.kind(), "exact");
     assert_eq!(s.kind(), "sliced");
-    assert_eq!(e.fingerprint(), "exact(max_n=6000)");
+    assert_eq!(e.fingerprint(), "exact(max_n=10000)");
     assert_eq!(
         s.fingerprint(),
         "sliced(iterations=200,seed=0,step=0.3,tolerance=0.001,check_directions=32)"

@@ -268,7 +268,12 @@ fn run<const D: usize>(
     let mut max_pairs = 0usize;
     for (stage, &blur) in blurs.iter().enumerate() {
         let eps = blur * blur;
-        let level = level_of(blur).max(state.as_ref().map_or(0, |s| s.level));
+        // The map needs the points: the last stage always runs on them.
+        let level = if stage + 1 == blurs.len() {
+            point_level
+        } else {
+            level_of(blur).max(state.as_ref().map_or(0, |s| s.level))
+        };
         // Target potential on the new level.
         let g = match &state {
             None => vec![0.0; ht.levels[level].len()],
@@ -328,7 +333,7 @@ fn run<const D: usize>(
         state = Some(st);
     }
     let st = state.expect("at least one stage runs");
-    debug_assert_eq!(st.level, point_level);
+    assert_eq!(st.level, point_level, "the last stage runs on the points");
 
     // The map.
     let dim = D;
@@ -660,7 +665,11 @@ fn refine_assignment<const D: usize>(
     );
     // Rows the sparse auction could not place (its graph may lack a perfect matching, or a price
     // war ran out of budget) are completed by dense shortest augmenting paths.
-    let free: Vec<usize> = (0..m.x.len()).filter(|&i| m.x[i] == u32::MAX).collect();
+    let free: Vec<usize> = if m.unassigned == 0 {
+        Vec::new()
+    } else {
+        (0..m.x.len()).filter(|&i| m.x[i] == u32::MAX).collect()
+    };
     let paths = if !free.is_empty() && free.len() <= MAX_DENSE_PATHS {
         super::exact::augment(y.len(), &graph.cost, &free, &mut m.x, &mut m.y, &mut v)
     } else {
@@ -751,3 +760,6 @@ fn finish_identity(problem: &Problem<'_>, n: usize) -> Solution {
         },
     }
 }
+
+#[cfg(test)]
+mod tests;
