@@ -377,7 +377,7 @@ impl Manifest {
         let skind = *s.kind.get_ref();
         // Every key belongs to some solver kinds; a key of another kind is an error, not ignored.
         let span = |v: Option<Range<usize>>| v;
-        let keys: [(Option<Range<usize>>, &str, &[SolverKind]); 12] = [
+        let keys: [(Option<Range<usize>>, &str, &[SolverKind]); 11] = [
             (
                 span(s.iterations.as_ref().map(|v| v.span())),
                 "iterations",
@@ -431,11 +431,6 @@ impl Manifest {
             (
                 span(s.map.as_ref().map(|v| v.span())),
                 "map",
-                &[SolverKind::Sinkhorn],
-            ),
-            (
-                span(s.overrelaxation.as_ref().map(|v| v.span())),
-                "overrelaxation",
                 &[SolverKind::Sinkhorn],
             ),
         ];
@@ -534,14 +529,6 @@ impl Manifest {
                     "at least 1 (default 12)",
                 )? {
                     sk.truncate = v;
-                }
-                if let Some(v) = real(
-                    &s.overrelaxation,
-                    "overrelaxation",
-                    &|v| (1.0..2.0).contains(&v),
-                    "in [1, 2)",
-                )? {
-                    sk.overrelaxation = v;
                 }
                 if let Some(it) = &s.max_iterations {
                     if *it.get_ref() == 0 {
@@ -750,7 +737,6 @@ struct RawSolver {
     max_iterations: Option<Spanned<u32>>,
     truncate: Option<Spanned<f64>>,
     map: Option<Spanned<RawMapKind>>,
-    overrelaxation: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]

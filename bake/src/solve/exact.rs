@@ -761,7 +761,7 @@ mod tests {
             "{err:?}"
         );
         let msg = err.to_string();
-        assert!(msg.contains("n <= 10") && msg.contains("sliced"), "{msg}");
+        assert!(msg.contains("n <= 10") && msg.contains("sinkhorn"), "{msg}");
         assert!(solve_any(
             &problem,
             &SolverSettings::Exact(ExactSettings { max_n: 11 })

@@ -84,10 +84,6 @@ pub struct SinkhornSettings {
     pub truncate: f64,
     /// How the map is read off the plan.
     pub map: MapKind,
-    /// Over-relaxation ω in [1, 2): each scaling moves to s^(1−ω)·s_new^ω (Thibault et al. 2021,
-    /// "Overrelaxed Sinkhorn–Knopp algorithm for regularized optimal transport"). 1 is plain
-    /// Sinkhorn.
-    pub overrelaxation: f64,
 }
 
 impl Default for SinkhornSettings {
@@ -100,7 +96,6 @@ impl Default for SinkhornSettings {
             max_iterations: 2000,
             truncate: 12.0,
             map: MapKind::Assignment,
-            overrelaxation: 1.0,
         }
     }
 }
@@ -108,15 +103,14 @@ impl Default for SinkhornSettings {
 impl SinkhornSettings {
     pub(super) fn fingerprint(&self) -> String {
         format!(
-            "sinkhorn(blur={:?},blur_spacing={:?},scaling={:?},tolerance={:?},max_iterations={},truncate={:?},map={},overrelaxation={:?})",
+            "sinkhorn(blur={:?},blur_spacing={:?},scaling={:?},tolerance={:?},max_iterations={},truncate={:?},map={})",
             self.blur,
             self.blur_spacing,
             self.scaling,
             self.tolerance,
             self.max_iterations,
             self.truncate,
-            self.map.name(),
-            self.overrelaxation
+            self.map.name()
         )
     }
 
@@ -147,9 +141,6 @@ impl SinkhornSettings {
                 "tolerance",
                 "must be in (0, 1) (L1 marginal error, total mass 1)",
             );
-        }
-        if !(self.overrelaxation >= 1.0 && self.overrelaxation < 2.0) {
-            return bad("overrelaxation", "must be in [1, 2); 1 is plain Sinkhorn");
         }
         if self.max_iterations == 0 {
             return bad("max_iterations", "must be at least 1");
@@ -471,7 +462,6 @@ fn iterate<const D: usize>(
     );
     let mut error = f64::INFINITY;
     let mut it = 0u32;
-    let omega = settings.overrelaxation;
     // The kernel holds every pair within θε of its row's or column's best *for the potentials it
     // was built with*; once a scaling has moved a potential by more than θε/4 that guarantee is
     // for (θ/2)ε only, so the kernel is rebuilt around the current potentials (Schmitzer's
@@ -495,7 +485,7 @@ fn iterate<const D: usize>(
                             s += f64::from(kern.k[p]) * v[kern.col[p] as usize];
                         }
                         e += (*u * s - a[i]).abs();
-                        *u = relax(*u, a[i] / s, omega);
+                        *u = a[i] / s;
                         if let Some(r0) = uref {
                             let r = *u / r0[i];
                             far |= !(r < drift_max && r > 1.0 / drift_max);
@@ -522,7 +512,7 @@ fn iterate<const D: usize>(
                         for p in kern.col_ptr[j]..kern.col_ptr[j + 1] {
                             t += f64::from(kern.kt[p]) * u[kern.row[p] as usize];
                         }
-                        *v = relax(*v, b[j] / t, omega);
+                        *v = b[j] / t;
                         let r = *v / b[j];
                         far |= !(r < drift_max && r > 1.0 / drift_max);
                     }
@@ -578,16 +568,6 @@ fn iterate<const D: usize>(
         converged: false,
         error,
     })
-}
-
-/// Over-relaxed update s^(1−ω) · s_new^ω (ω = 1: plain Sinkhorn).
-#[inline]
-fn relax(old: f64, new: f64, omega: f64) -> f64 {
-    if omega == 1.0 {
-        new
-    } else {
-        (old.ln() * (1.0 - omega) + new.ln() * omega).exp()
-    }
 }
 
 /// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level.

@@ -278,10 +278,10 @@ fn invalid_settings_are_named() {
         ),
         (
             SinkhornSettings {
-                overrelaxation: 2.0,
+                truncate: 0.5,
                 ..Default::default()
             },
-            "overrelaxation",
+            "truncate",
         ),
     ] {
         match solve(&p, &SolverSettings::Sinkhorn(s)) {
