@@ -377,7 +377,8 @@ impl Manifest {
         let skind = *s.kind.get_ref();
         // Every key belongs to some solver kinds; a key of another kind is an error, not ignored.
         let span = |v: Option<Range<usize>>| v;
-        let keys: [(Option<Range<usize>>, &str, &[SolverKind]); 11] = [
+        type KeyUse<'k> = (Option<Range<usize>>, &'k str, &'k [SolverKind]);
+        let keys: [KeyUse; 11] = [
             (
                 span(s.iterations.as_ref().map(|v| v.span())),
                 "iterations",

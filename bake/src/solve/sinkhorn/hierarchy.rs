@@ -186,7 +186,8 @@ fn cell_level<const D: usize>(
     side: f64,
 ) -> Level<D> {
     let m = starts.len();
-    let cells: Vec<([f64; D], f64, [f64; D], [f64; D])> = (0..m)
+    type Cell<const D: usize> = ([f64; D], f64, [f64; D], [f64; D]);
+    let cells: Vec<Cell<D>> = (0..m)
         .into_par_iter()
         .map(|c| {
             let a = starts[c] as usize;
@@ -307,8 +308,8 @@ mod tests {
         seen.sort_unstable();
         assert!(seen.iter().enumerate().all(|(i, &o)| i as u32 == o));
         let counts = cell_counts(&pts, &grid);
-        for l in 0..=5 {
-            assert_eq!(counts[l], h.levels[l].len());
+        for (l, &count) in counts.iter().enumerate().take(6) {
+            assert_eq!(count, h.levels[l].len());
         }
     }
 }

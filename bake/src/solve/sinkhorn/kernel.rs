@@ -150,8 +150,9 @@ fn solve_spd<const D: usize>(mut a: [[f64; D]; D], mut r: [f64; D]) -> [f64; D] 
         }
         for i in k + 1..D {
             let f = a[i][k] / a[k][k];
-            for j in k..D {
-                a[i][j] -= f * a[k][j];
+            let (top, bottom) = a.split_at_mut(i);
+            for (x, y) in bottom[0][k..].iter_mut().zip(&top[k][k..]) {
+                *x -= f * y;
             }
             r[i] -= f * r[k];
         }
@@ -197,6 +198,7 @@ fn cell_bound<const D: usize>(
     s - mag * 1e-13
 }
 
+#[allow(clippy::too_many_arguments)]
 /// All cells j of `h` at `level` with C(x, y_j) − pot_j ≤ min + `margin`, appended to `out` as
 /// (j, C − pot_j) in search order; returns the minimum.
 fn search<const D: usize>(
@@ -350,8 +352,8 @@ fn transpose(ptr: &[usize], idx: &[u32], cols: usize) -> (Vec<usize>, Vec<u32>, 
     let mut tidx = vec![0u32; idx.len()];
     let mut src = vec![0usize; idx.len()];
     for i in 0..ptr.len() - 1 {
-        for e in ptr[i]..ptr[i + 1] {
-            let j = idx[e] as usize;
+        for (e, &j) in idx.iter().enumerate().take(ptr[i + 1]).skip(ptr[i]) {
+            let j = j as usize;
             tidx[fill[j]] = i as u32;
             src[fill[j]] = e;
             fill[j] += 1;
@@ -457,6 +459,7 @@ mod tests {
     use super::*;
 
     /// The truncation keeps exactly the pairs a dense scan keeps.
+    #[allow(clippy::needless_range_loop)]
     #[test]
     fn truncation_equals_dense_scan() {
         let pts = |seed: f64, n: usize| -> Vec<[f64; 2]> {
