@@ -18,7 +18,7 @@
 //! kind = "sinkhorn"             # sinkhorn | exact | sliced
 //! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
 //! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
-//! # blur_spacing = 1.0, scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 12.0
+//! # blur_spacing = 1.0, scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0
 //! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0
 //!
 //! [[input]]
@@ -527,7 +527,7 @@ impl Manifest {
                     &s.truncate,
                     "truncate",
                     &|v| v.is_finite() && v >= 1.0,
-                    "at least 1 (default 12)",
+                    "at least 1 (default 8)",
                 )? {
                     sk.truncate = v;
                 }

@@ -14,8 +14,8 @@
 /// "Unassigned".
 const NONE: u32 = u32::MAX;
 
-/// Row processings allowed per phase, per row.
-const BUDGET_PER_ROW: u64 = 50;
+/// Bids per row one phase may spend in all before its free rows are parked (see [`auction`]).
+pub(crate) const BIDS_PER_ROW: u64 = 50;
 
 /// The candidate graph and its costs.
 pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64> {
@@ -30,31 +30,42 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64> {
 pub(crate) struct Matching {
     /// Row → column, `u32::MAX` for rows left unassigned when a phase ran out of budget.
     pub x: Vec<u32>,
-    /// Column → row, `u32::MAX` for free columns.
-    pub y: Vec<u32>,
     pub unassigned: usize,
     pub phases: u32,
     pub bids: u64,
+    /// Rows the `complete` callback assigned.
+    pub completed: u32,
 }
 
 /// Runs the ε-scaling auction from duals `v` with bid increments from `eps_start` down to `eps_end`
 /// (divided by `divisor` per phase). `gap` is the second-best margin used for rows with a single
 /// candidate (a large cost, e.g. the squared extent).
-pub(crate) fn auction<C: Fn(usize, usize) -> f64>(
+///
+/// A phase that spends [`BIDS_PER_ROW`] × rows bids is in a price war the graph cannot end (a set
+/// of rows with too few candidate columns between them) or would end only slowly; its free rows are
+/// parked, and at the end of the phase `complete` assigns them by other means (dense augmenting
+/// paths) and returns how many it assigned. The next phase then goes on from that assignment.
+pub(crate) fn auction<C, F>(
     graph: &Graph<'_, C>,
     v: &mut [f64],
     eps_start: f64,
     eps_end: f64,
     divisor: f64,
     gap: f64,
-) -> Matching {
+    mut complete: F,
+) -> Matching
+where
+    C: Fn(usize, usize) -> f64,
+    F: FnMut(&[usize], &mut [u32], &mut [u32], &mut [f64]) -> u32,
+{
     let rows = graph.row_ptr.len() - 1;
     let mut x = vec![NONE; rows];
     let mut y = vec![NONE; graph.cols];
     let mut eps = eps_start.max(eps_end);
     let mut phases = 0u32;
     let mut bids = 0u64;
-    let unassigned = loop {
+    let mut completed = 0u32;
+    loop {
         phases += 1;
         // Free every row that violates ε-complementary slackness (all rows in the first phase).
         let mut queue: Vec<usize> = Vec::new();
@@ -71,19 +82,23 @@ pub(crate) fn auction<C: Fn(usize, usize) -> f64>(
                 queue.push(i);
             }
         }
-        let budget = BUDGET_PER_ROW * rows as u64;
-        let mut processed = 0u64;
+        let mut parked = Vec::new();
         let mut head = 0usize;
+        let budget = BIDS_PER_ROW * rows as u64;
+        let mut spent = 0u64;
         while head < queue.len() {
-            if processed >= budget {
+            if spent >= budget {
+                parked.extend_from_slice(&queue[head..]);
                 break;
             }
-            processed += 1;
             let i = queue[head];
             head += 1;
+            spent += 1;
+            bids += 1;
             let (u1, j1, u2, _) = best_two(graph, v, i);
             if j1 == usize::MAX {
-                continue; // a row without candidates cannot be assigned
+                parked.push(i); // a row without candidates
+                continue;
             }
             let second = if u2.is_finite() { u2 } else { u1 + gap };
             v[j1] -= second - u1 + eps;
@@ -95,18 +110,24 @@ pub(crate) fn auction<C: Fn(usize, usize) -> f64>(
                 queue.push(prev as usize);
             }
         }
-        bids += processed;
-        if head < queue.len() || eps <= eps_end {
-            break x.iter().filter(|&&j| j == NONE).count();
+        if !parked.is_empty() {
+            parked.sort_unstable();
+            parked.dedup();
+            parked.retain(|&i| x[i] == NONE);
+            completed += complete(&parked, &mut x, &mut y, v);
+        }
+        if eps <= eps_end {
+            break;
         }
         eps = (eps / divisor).max(eps_end);
-    };
+    }
+    let unassigned = x.iter().filter(|&&j| j == NONE).count();
     Matching {
         x,
-        y,
         unassigned,
         phases,
         bids,
+        completed,
     }
 }
 
@@ -162,7 +183,7 @@ mod tests {
             cost,
         };
         let mut v = vec![0.0; n];
-        let m = auction(&g, &mut v, 0.5, 1e-9, 4.0, 10.0);
+        let m = auction(&g, &mut v, 0.5, 1e-9, 4.0, 10.0, |_, _, _, _| 0);
         assert_eq!(m.unassigned, 0);
         let total: f64 = (0..n).map(|i| cost(i, m.x[i] as usize)).sum();
         // Brute force over all permutations.
@@ -199,7 +220,15 @@ mod tests {
             cost: |_, _| 1.0,
         };
         let mut v = vec![0.0; 2];
-        let m = auction(&g, &mut v, 0.1, 1e-6, 4.0, 1.0);
+        let mut asked = Vec::new();
+        let m = auction(&g, &mut v, 0.1, 1e-6, 4.0, 1.0, |free, _, _, _| {
+            asked.extend_from_slice(free);
+            0
+        });
         assert_eq!(m.unassigned, 1);
+        assert!(
+            !asked.is_empty(),
+            "the parked row is handed to the completion"
+        );
     }
 }

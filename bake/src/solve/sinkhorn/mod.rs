@@ -80,7 +80,8 @@ pub struct SinkhornSettings {
     /// from their potentials, and the report counts them); the final stage must converge.
     pub max_iterations: u32,
     /// Truncation θ: pairs more than θ·ε above their row's and column's best are dropped (their
-    /// kernel entries are below e^−θ of the best).
+    /// kernel entries are below e^−θ of the best). Default 8: on uniform/Gaussian → shape at 5K and
+    /// 50K points, θ = 8 and 12 gave the same matchings, and 8 keeps a third fewer pairs.
     pub truncate: f64,
     /// How the map is read off the plan.
     pub map: MapKind,
@@ -94,7 +95,7 @@ impl Default for SinkhornSettings {
             scaling: 0.5,
             tolerance: 1e-3,
             max_iterations: 2000,
-            truncate: 12.0,
+            truncate: 8.0,
             map: MapKind::Assignment,
         }
     }
@@ -148,7 +149,7 @@ impl SinkhornSettings {
         if !(self.truncate.is_finite() && self.truncate >= 1.0) {
             return bad(
                 "truncate",
-                "must be at least 1 (12 keeps entries above e^-12)",
+                "must be at least 1 (8 keeps entries above e^-8)",
             );
         }
         Ok(())
@@ -635,35 +636,32 @@ fn refine_assignment<const D: usize>(
         cols: y.len(),
         cost: |i: usize, j: usize| sq(&x[i], &y[j]),
     };
-    let mut m = auction(
+    let n_cols = y.len();
+    let cost = |i: usize, j: usize| sq(&x[i], &y[j]);
+    let m = auction(
         &graph,
         &mut v,
         st.eps,
         st.eps * AUCTION_EPS_END,
         4.0,
         side * side * D as f64,
+        // Rows the sparse graph cannot place (it may lack a perfect matching, or a price war would
+        // be slow) are completed by dense shortest augmenting paths, up to a limit.
+        |free, xs, ys, v| {
+            if free.len() > MAX_DENSE_PATHS {
+                return 0;
+            }
+            super::exact::augment(n_cols, &cost, free, xs, ys, v)
+        },
     );
-    // Rows the sparse auction could not place (its graph may lack a perfect matching, or a price
-    // war ran out of budget) are completed by dense shortest augmenting paths.
-    let free: Vec<usize> = if m.unassigned == 0 {
-        Vec::new()
-    } else {
-        (0..m.x.len()).filter(|&i| m.x[i] == u32::MAX).collect()
-    };
-    let paths = if !free.is_empty() && free.len() <= MAX_DENSE_PATHS {
-        super::exact::augment(y.len(), &graph.cost, &free, &mut m.x, &mut m.y, &mut v)
-    } else {
-        0
-    };
-    let unassigned = m.x.iter().filter(|&&j| j == u32::MAX).count();
     let info = RefineInfo {
-        x: m.x,
-        unassigned,
+        unassigned: m.unassigned,
         phases: m.phases,
         bids: m.bids,
-        paths,
+        paths: m.completed,
+        x: m.x,
     };
-    if unassigned == 0 {
+    if info.unassigned == 0 {
         Ok((info.x.clone(), info))
     } else {
         Err(info)
