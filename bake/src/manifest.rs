@@ -247,12 +247,17 @@ impl Manifest {
                     ),
                 ));
             };
-            if kind.is_brdf() {
+            if !kind.has_channels() {
                 if let Some(d) = &input.density {
                     if *d.get_ref() != DensityChannel::Luminance {
+                        let why = if kind.is_brdf() {
+                            "is a BRDF: its density is always the luminance"
+                        } else {
+                            "is a 3D input: its density is its values (volumes) or uniform inside (meshes)"
+                        };
                         return Err(at(
                             Some(d.span()),
-                            format!("input {name:?} is a BRDF: its density is always the luminance; remove `density`"),
+                            format!("input {name:?} {why}; remove `density`"),
                         ));
                     }
                 }

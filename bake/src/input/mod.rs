@@ -50,6 +50,8 @@ pub enum InputKind {
     Merl,
     /// Cornell irregularly sampled isotropic BRDF (`.brdf`): 3D over (θi, θo, φd).
     Cornell,
+    /// Mitsuba binary volume grid (`.vol`): a 3D density over the unit cube.
+    Volume,
 }
 
 /// File extensions (lower case) of every input kind.
@@ -60,6 +62,7 @@ pub const EXTENSIONS: &[(&str, InputKind)] = &[
     ("exr", InputKind::Image),
     ("binary", InputKind::Merl),
     ("brdf", InputKind::Cornell),
+    ("vol", InputKind::Volume),
 ];
 
 impl InputKind {
@@ -73,13 +76,19 @@ impl InputKind {
     pub fn dim(self) -> usize {
         match self {
             InputKind::Image => 2,
-            InputKind::Merl | InputKind::Cornell => 3,
+            InputKind::Merl | InputKind::Cornell | InputKind::Volume => 3,
         }
     }
 
     /// Whether inputs of this kind are BRDFs (resampled to a `[brdf] resolution` grid).
     pub fn is_brdf(self) -> bool {
         matches!(self, InputKind::Merl | InputKind::Cornell)
+    }
+
+    /// Whether inputs of this kind take a `density` channel (images only: BRDFs are luminance,
+    /// volumes are their values).
+    pub fn has_channels(self) -> bool {
+        self == InputKind::Image
     }
 
     /// `.png, .jpg, …`: for error messages.
@@ -136,6 +145,16 @@ pub fn load_with(
             let lattice = crate::brdf::cornell::Cornell::read(path)?.lattice();
             crate::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
         }
+        Some(InputKind::Volume) => {
+            if channel != DensityChannel::Luminance {
+                return Err(InputError::Volume(crate::volume::vol::VolError::Format {
+                    path: path.to_path_buf(),
+                    offset: 0,
+                    message: format!("density `{channel}` does not apply to volumes: their values are the density (remove `density`)"),
+                }));
+            }
+            crate::volume::vol::load(path)
+        }
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),
             ext: path
@@ -191,7 +210,7 @@ pub enum InputError {
         source: std::io::Error,
     },
 
-    #[error("input file {} has an unsupported extension {ext:?}: supported image files are .png, .jpg, .jpeg and .exr (convert the file to one of them)", path.display())]
+    #[error("input file {} has an unsupported extension {ext:?}: supported are {} (convert the file to one of them)", path.display(), InputKind::supported())]
     UnsupportedExtension { path: PathBuf, ext: String },
 
     #[error("cannot decode image {}: {message}; re-export it as an ordinary 8- or 16-bit PNG or a baseline JPEG", path.display())]
@@ -230,6 +249,9 @@ pub enum InputError {
 
     #[error("BRDF {}: {message}", path.display())]
     BrdfValue { path: PathBuf, message: String },
+
+    #[error(transparent)]
+    Volume(#[from] crate::volume::vol::VolError),
 
     #[error("invalid density grid: {0}")]
     GridShape(String),
