@@ -25,11 +25,17 @@
 //!
 //! [brdf]                        # optional; for .binary (MERL) and .brdf (Cornell) inputs
 //! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
+//!
+//! [mesh]                        # optional; for .obj inputs (see volume::voxelize)
+//! resolution = 128              # grid cells per axis (default 128)
+//! fit = "each"                  # each (own bounding box) | common (one box for all meshes)
+//! margin = 0.05                 # empty border on every side of the cube (default 0.05)
 //! ```
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
 use crate::solve::{ExactSettings, SlicedSettings, SolverSettings};
+use crate::volume::voxelize::{Fit, MAX_MARGIN};
 use serde::Deserialize;
 use std::fmt;
 use std::ops::Range;
@@ -209,6 +215,30 @@ impl Manifest {
                 options.brdf_resolution = v as usize;
             }
         }
+        let mut common_fit = false;
+        if let Some(m) = &raw.mesh {
+            if let Some(r) = &m.resolution {
+                let v = *r.get_ref();
+                if !(2..=1024).contains(&v) {
+                    return Err(at(
+                        Some(r.span()),
+                        format!("`mesh.resolution` = {v} is out of range: use 2 to 1024 cells per axis (default {}; tests 16-32)", crate::volume::voxelize::DEFAULT_RESOLUTION),
+                    ));
+                }
+                options.mesh.resolution = v as usize;
+            }
+            if let Some(margin) = &m.margin {
+                let v = *margin.get_ref();
+                if !(v.is_finite() && (0.0..=MAX_MARGIN).contains(&v)) {
+                    return Err(at(
+                        Some(margin.span()),
+                        format!("`mesh.margin` = {v} is out of range: use 0 to {MAX_MARGIN} (a fraction of the cube left empty on every side; default {})", crate::volume::voxelize::DEFAULT_MARGIN),
+                    ));
+                }
+                options.mesh.margin = v;
+            }
+            common_fit = m.fit.as_ref().map(|f| *f.get_ref()) == Some(RawFit::Common);
+        }
         let mut inputs = Vec::new();
         for input in &raw.inputs {
             let name = input.name.get_ref();
@@ -278,8 +308,19 @@ impl Manifest {
                     .map(|d| *d.get_ref())
                     .unwrap_or_default(),
                 seed: input.seed.unwrap_or(0),
-                options,
+                options: options.clone(),
             });
+        }
+        if common_fit {
+            // Every mesh is placed by the union of all mesh inputs' bounding boxes.
+            let meshes: Vec<PathBuf> = inputs
+                .iter()
+                .filter(|i| i.kind == InputKind::Mesh)
+                .map(|i| i.path.clone())
+                .collect();
+            for i in inputs.iter_mut().filter(|i| i.kind == InputKind::Mesh) {
+                i.options.mesh.fit = Fit::Common(meshes.clone());
+            }
         }
 
         let p = &raw.proxy;
@@ -448,6 +489,22 @@ struct RawManifest {
     #[serde(rename = "input", default)]
     inputs: Vec<RawInput>,
     brdf: Option<RawBrdf>,
+    mesh: Option<RawMesh>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMesh {
+    resolution: Option<Spanned<u64>>,
+    fit: Option<Spanned<RawFit>>,
+    margin: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum RawFit {
+    Each,
+    Common,
 }
 
 #[derive(Deserialize)]
@@ -578,5 +635,38 @@ density = "inverted"
         assert!(e.message.contains("only to kind"), "{e}");
         let e = manifest(&GOOD.replace("kind = \"gaussian\"", "kind = \"input\"")).unwrap_err();
         assert!(e.message.contains("proxy.input"), "{e}");
+    }
+
+    #[test]
+    fn mesh_section_sets_resolution_margin_and_common_fit() {
+        let body = GOOD
+            .replace("duck.png", "../meshes/torus.obj")
+            .replace("density = \"inverted\"\n", "")
+            + "[[input]]\nname = \"cow\"\npath = \"../meshes/spot_triangulated.obj\"\n";
+        let m = manifest(&body).unwrap();
+        assert_eq!(m.inputs[0].kind, InputKind::Mesh);
+        assert_eq!(m.inputs[0].options.mesh, Default::default());
+        let m = manifest(&format!(
+            "{body}[mesh]\nresolution = 32\nfit = \"common\"\nmargin = 0.1\n"
+        ))
+        .unwrap();
+        let all = vec![m.inputs[0].path.clone(), m.inputs[1].path.clone()];
+        for i in &m.inputs {
+            assert_eq!(i.options.mesh.resolution, 32);
+            assert_eq!(i.options.mesh.margin, 0.1);
+            assert_eq!(i.options.mesh.fit, Fit::Common(all.clone()));
+        }
+        for (bad, key) in [
+            ("resolution = 1", "mesh.resolution"),
+            ("margin = 0.5", "mesh.margin"),
+            ("fit = \"both\"", "both"),
+            ("size = 3", "size"),
+        ] {
+            let e = manifest(&format!("{body}[mesh]\n{bad}\n")).unwrap_err();
+            assert_eq!(e.line, 16, "{e}");
+            assert!(e.message.contains(key), "{e}");
+        }
+        let e = manifest(&format!("{body}density = \"alpha\"\n")).unwrap_err();
+        assert!(e.message.contains("3D input"), "{e}");
     }
 }

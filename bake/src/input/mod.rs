@@ -52,6 +52,8 @@ pub enum InputKind {
     Cornell,
     /// Mitsuba binary volume grid (`.vol`): a 3D density over the unit cube.
     Volume,
+    /// Wavefront OBJ mesh (`.obj`): uniform density inside, voxelized (`[mesh]` settings).
+    Mesh,
 }
 
 /// File extensions (lower case) of every input kind.
@@ -63,6 +65,7 @@ pub const EXTENSIONS: &[(&str, InputKind)] = &[
     ("binary", InputKind::Merl),
     ("brdf", InputKind::Cornell),
     ("vol", InputKind::Volume),
+    ("obj", InputKind::Mesh),
 ];
 
 impl InputKind {
@@ -76,7 +79,7 @@ impl InputKind {
     pub fn dim(self) -> usize {
         match self {
             InputKind::Image => 2,
-            InputKind::Merl | InputKind::Cornell | InputKind::Volume => 3,
+            InputKind::Merl | InputKind::Cornell | InputKind::Volume | InputKind::Mesh => 3,
         }
     }
 
@@ -102,16 +105,19 @@ impl InputKind {
 }
 
 /// Settings of how inputs are turned into grids, beyond the density channel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LoadOptions {
     /// Cells per axis of BRDF grids.
     pub brdf_resolution: usize,
+    /// Resolution and placement of mesh grids.
+    pub mesh: crate::volume::voxelize::MeshOptions,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
             brdf_resolution: crate::brdf::DEFAULT_RESOLUTION,
+            mesh: Default::default(),
         }
     }
 }
@@ -134,6 +140,12 @@ pub fn load_with(
             message: format!("density `{channel}` does not apply to BRDFs: their density is the luminance (remove `density`)"),
         });
     }
+    if kind.is_some_and(|k| k.dim() == 3 && !k.is_brdf()) && channel != DensityChannel::Luminance {
+        return Err(InputError::Density3d {
+            path: path.to_path_buf(),
+            channel,
+        });
+    }
     let res = options.brdf_resolution;
     match kind {
         Some(InputKind::Image) => load_image(path, channel),
@@ -145,16 +157,8 @@ pub fn load_with(
             let lattice = crate::brdf::cornell::Cornell::read(path)?.lattice();
             crate::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
         }
-        Some(InputKind::Volume) => {
-            if channel != DensityChannel::Luminance {
-                return Err(InputError::Volume(crate::volume::vol::VolError::Format {
-                    path: path.to_path_buf(),
-                    offset: 0,
-                    message: format!("density `{channel}` does not apply to volumes: their values are the density (remove `density`)"),
-                }));
-            }
-            crate::volume::vol::load(path)
-        }
+        Some(InputKind::Volume) => crate::volume::vol::load(path),
+        Some(InputKind::Mesh) => crate::volume::voxelize::load(path, &options.mesh),
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),
             ext: path
@@ -252,6 +256,15 @@ pub enum InputError {
 
     #[error(transparent)]
     Volume(#[from] crate::volume::vol::VolError),
+
+    #[error(transparent)]
+    Mesh(#[from] crate::volume::mesh::MeshError),
+
+    #[error("density `{channel}` does not apply to {}: a volume's density is its values, a mesh's is uniform inside (remove `density`)", path.display())]
+    Density3d {
+        path: PathBuf,
+        channel: DensityChannel,
+    },
 
     #[error("invalid density grid: {0}")]
     GridShape(String),
