@@ -9,6 +9,7 @@
 //! centered by its bounding box or by one box shared by all mesh inputs ([`voxelize`]).
 
 pub mod mesh;
+pub mod render;
 pub mod vol;
 pub mod voxelize;
 pub mod winding;
