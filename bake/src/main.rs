@@ -276,8 +276,8 @@ enum Command {
         /// Kernel standard deviation in unit-cube units.
         #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
         sigma: f32,
-        /// Camera azimuth in degrees about the y axis (0: looking along -z).
-        #[arg(long, default_value_t = 35.0, allow_hyphen_values = true)]
+        /// Camera azimuth in degrees about the y axis (0: looking along -z, 90: along -x).
+        #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
         azimuth: f64,
         /// Camera elevation in degrees.
         #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]

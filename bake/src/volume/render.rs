@@ -20,10 +20,13 @@
 //!
 //! Emission–absorption with shading, the usual preview of a density (no scattering, no shadows):
 //! along each camera ray, a sample at `p` has extinction `σt = extinction · mass(p)` and emits
-//! `albedo · (ambient + (1 − ambient) · max(0, n · l))` with `n = −∇mass / |∇mass|` (forward
-//! differences, one kernel σ apart) and `l` a fixed light above and to the left of the camera. So
+//! `albedo · (ambient + (1 − ambient) · d)`, where `d = clamp((mass(p) − mass(p + 2σ l)) / mass(p),
+//! 0, 1)` is how much the density falls toward a fixed light `l` (above and to the left of the
+//! camera): about `max(0, n·l)` at a surface, with one extra point query instead of the three a
+//! gradient costs (half the render time; the samples inside the medium dominate it). So
 //! `L = Σ_j T_j (1 − e^{−σt_j Δt}) c_j + T · background`, `T_j` the transmittance up to sample `j`.
-//! Rays stop once `T < 0.005`. The camera is orthographic, orbits the scene's box (azimuth about the
+//! Rays stop once `T < 0.005`, and skip the queries in cells of a coarse grid that range queries
+//! show to be empty (exactly zero density there: same image, less work). The camera is orthographic, orbits the scene's box (azimuth about the
 //! y axis, elevation above the xz plane, y up: the meshes' convention) and frames the union of the
 //! maps' point boxes (grown by 3σ), so every blend of a manifest is seen at the same scale.
 
@@ -242,7 +245,7 @@ pub struct RenderSettings {
     pub size: usize,
     /// Kernel standard deviation (unit-cube units).
     pub sigma: f32,
-    /// Degrees about the y axis; 0 looks along −z (from +z).
+    /// Degrees about the y axis; 0 looks along −z (from +z), 90 along −x.
     pub azimuth: f64,
     /// Degrees above the xz plane.
     pub elevation: f64,
@@ -257,7 +260,7 @@ impl Default for RenderSettings {
         RenderSettings {
             size: 256,
             sigma: DEFAULT_SIGMA,
-            azimuth: 35.0,
+            azimuth: 60.0,
             elevation: 20.0,
             extinction: 60.0,
             step: 0.75,
@@ -388,6 +391,58 @@ fn scene_box(maps: &[Map<'_>], sigma: f32) -> (V3, V3) {
     (lo.map(|x| x - r), hi.map(|x| x + r))
 }
 
+/// Which cells of a coarse grid over the camera's box can hold density: a cell is empty when a
+/// range query finds no blended point within 3σ of it (a little more, for rounding), and then the
+/// truncated kernel makes every point query inside it exactly 0. Rays skip the queries there, so
+/// images are the same bits as without skipping, only faster (most of a ray is empty space).
+struct Occupancy {
+    lo: V3,
+    inv_cell: V3,
+    res: usize,
+    full: Vec<bool>,
+}
+
+impl Occupancy {
+    fn new(prep: &Prepared<'_>, lo: V3, hi: V3, sigma: f32) -> Result<Self, VolumeRenderError> {
+        let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+        // Cells about 4σ wide: small enough to hug the shapes, few enough to cost little.
+        let res = ((extent / (4.0 * f64::from(sigma))).ceil() as usize).clamp(4, 64);
+        let cell = [0, 1, 2].map(|k| (hi[k] - lo[k]) / res as f64);
+        let reach = 3.0 * f64::from(sigma) * 1.001 + 1e-6;
+        let mut full = vec![false; res * res * res];
+        full.par_chunks_mut(res)
+            .enumerate()
+            .try_for_each(|(row, out)| {
+                let (j, l) = (row % res, row / res);
+                for (i, f) in out.iter_mut().enumerate() {
+                    let c = [i, j, l];
+                    let a = [0, 1, 2].map(|k| (lo[k] + c[k] as f64 * cell[k] - reach) as f32);
+                    let b = [0, 1, 2].map(|k| (lo[k] + (c[k] + 1) as f64 * cell[k] + reach) as f32);
+                    *f = prep.range(&a, &b)?.count > 0;
+                }
+                Ok(())
+            })
+            .map_err(runtime("range query"))?;
+        Ok(Occupancy {
+            lo,
+            inv_cell: cell.map(|c| 1.0 / c),
+            res,
+            full,
+        })
+    }
+
+    /// Whether the cell containing `p` may hold density (points outside the grid are clamped).
+    fn may_hold(&self, p: V3) -> bool {
+        let mut index = 0;
+        for k in (0..3).rev() {
+            let i = ((p[k] - self.lo[k]) * self.inv_cell[k]).floor();
+            let i = (i.max(0.0) as usize).min(self.res - 1);
+            index = index * self.res + i;
+        }
+        self.full[index]
+    }
+}
+
 /// A deterministic offset in `[0, 1)` per pixel (breaks up the banding of regular steps).
 fn jitter(x: usize, y: usize) -> f64 {
     let mut h = (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -425,12 +480,14 @@ fn check_render(s: &RenderSettings) -> Result<Kernel, VolumeRenderError> {
     check_sigma(s.sigma)
 }
 
-/// Ray-marches one prepared blend (see the module docs for the model).
+/// Ray-marches one prepared blend (see the module docs for the model), skipping the queries in
+/// cells `occupancy` knows to be empty.
 fn march(
     prep: &Prepared<'_>,
     cam: &Camera,
     s: &RenderSettings,
     kernel: Kernel,
+    occupancy: Option<&Occupancy>,
 ) -> Result<Rgba, VolumeRenderError> {
     let size = s.size;
     let dt = f64::from(s.step * s.sigma);
@@ -446,25 +503,21 @@ fn march(
                 if let Some((origin, t0, t1)) = cam.ray(x, y, size) {
                     let mut t = t0 + jitter(x, y) * dt;
                     while t < t1 && transmittance >= MIN_TRANSMITTANCE {
-                        let p = add(origin, scale(cam.forward, t)).map(|c| c as f32);
+                        let pos = add(origin, scale(cam.forward, t));
                         t += dt;
+                        if occupancy.is_some_and(|o| !o.may_hold(pos)) {
+                            continue;
+                        }
+                        let p = pos.map(|c| c as f32);
                         let v = prep.point(&p, kernel)?;
                         let alpha = 1.0 - (-s.extinction * v.mass.max(0.0) * dt as f32).exp();
                         if alpha < 1e-4 {
                             continue;
                         }
-                        let mut grad = [0f32; 3];
-                        for (k, g) in grad.iter_mut().enumerate() {
-                            let mut q = p;
-                            q[k] += h;
-                            *g = (prep.point(&q, kernel)?.mass - v.mass) / h;
-                        }
-                        let len = grad.iter().map(|g| g * g).sum::<f32>().sqrt();
-                        let diffuse = if len > 0.0 {
-                            (-(0..3).map(|k| grad[k] * cam.light[k]).sum::<f32>() / len).max(0.0)
-                        } else {
-                            0.0
-                        };
+                        // How much density the light crosses on its way in, over 2σ.
+                        let toward = [0, 1, 2].map(|k| p[k] + 2.0 * h * cam.light[k]);
+                        let ahead = prep.point(&toward, kernel)?.mass;
+                        let diffuse = ((v.mass - ahead) / v.mass).clamp(0.0, 1.0);
                         let shade = AMBIENT + (1.0 - AMBIENT) * diffuse;
                         let albedo = if prep.has_color() && v.mass > 0.0 {
                             v.color.map(|c| c / v.mass)
@@ -498,7 +551,10 @@ pub fn render<'a>(
     let blend = open(proxy, maps)?;
     let (lo, hi) = scene_box(maps, s.sigma);
     let cam = Camera::new(lo, hi, s);
-    with_prepared(&blend, weights, |prep| march(prep, &cam, s, kernel))
+    with_prepared(&blend, weights, |prep| {
+        let occupancy = Occupancy::new(prep, lo, hi, s.sigma)?;
+        march(prep, &cam, s, kernel, Some(&occupancy))
+    })
 }
 
 /// A triangle of 3-way blends (paper Fig. 11) as one image: `steps` rows, input 0 at the top,
@@ -533,6 +589,54 @@ pub fn render_triangle(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::volume::mesh::shapes::{cuboid, icosphere};
+
+    /// Bakes a cube and a ball (16³, 600 points, exact solver) in a scratch directory.
+    fn small_bake(name: &str) -> Archives {
+        let dir =
+            std::env::temp_dir().join(format!("otbake-vrender-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("cube.obj"), cuboid([0.0; 3], [1.0; 3]).to_obj()).unwrap();
+        std::fs::write(dir.join("ball.obj"), icosphere([0.0; 3], 1.0, 2).to_obj()).unwrap();
+        let body = "[output]\ndir = \"out\"\n[proxy]\nkind = \"gaussian\"\nsamples = 600\n[solver]\nkind = \"exact\"\n[mesh]\nresolution = 16\nmargin = 0.2\n[[input]]\nname = \"cube\"\npath = \"cube.obj\"\n[[input]]\nname = \"ball\"\npath = \"ball.obj\"\n";
+        std::fs::write(dir.join("m.toml"), body).unwrap();
+        let m = crate::manifest::Manifest::load(&dir.join("m.toml")).unwrap();
+        crate::bake::bake(&m, &Default::default()).unwrap();
+        Archives::load(&m).unwrap()
+    }
+
+    #[test]
+    fn skipping_empty_cells_changes_no_pixel() {
+        let archives = small_bake("skip");
+        let maps = archives.maps().unwrap();
+        let blend = open(archives.proxy().unwrap(), &maps).unwrap();
+        let s = RenderSettings {
+            size: 32,
+            sigma: 0.015,
+            extinction: 5.0,
+            ..Default::default()
+        };
+        let kernel = check_render(&s).unwrap();
+        let (lo, hi) = scene_box(&maps, s.sigma);
+        let cam = Camera::new(lo, hi, &s);
+        // The ball leaves the corners of its box empty.
+        with_prepared(&blend, &[0.0, 1.0], |prep| {
+            let occupancy = Occupancy::new(prep, lo, hi, s.sigma)?;
+            let empty = occupancy.full.iter().filter(|f| !**f).count();
+            assert!(empty > occupancy.full.len() / 4, "{empty} empty cells");
+            let skipping = march(prep, &cam, &s, kernel, Some(&occupancy))?;
+            let plain = march(prep, &cam, &s, kernel, None)?;
+            assert_eq!(skipping, plain);
+            // Something was drawn: some pixels differ from the background.
+            assert!(plain
+                .pixels
+                .chunks(4)
+                .any(|p| (p[0] - BACKGROUND[0]).abs() > 0.1));
+            Ok(())
+        })
+        .unwrap();
+    }
 
     #[test]
     fn camera_rays_hit_the_box_they_frame() {
