@@ -8,7 +8,8 @@
 //! two kinds: uniform in the unit cube (mostly empty space), and on the blend (at its own sample
 //! positions, where the kernel holds the most points). Then renders the triangle (TRIANGLE_STEPS
 //! rows, default 4; SIZE² pixels per blend, default 256; 0 skips it) on the global rayon pool and
-//! reports its wall time.
+//! reports its wall time. Also reports each map's accuracy: the share of its points that land in
+//! empty cells of its input's grid (or outside the cube).
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
@@ -93,6 +94,23 @@ fn main() -> anyhow::Result<()> {
     println!("  Blend::point    uniform in the cube {blend_uniform:.2} us/call, on the blend {blend_on:.2} us/call");
     println!("  Prepared::point uniform in the cube {prep_uniform:.2} us/call, on the blend {prep_on:.2} us/call");
     println!("  (checksum {sink:.3})");
+    for (spec, map) in m.inputs.iter().zip(&maps) {
+        let grid = otbake::bake::load_input(spec)?;
+        let outside = map
+            .archived()
+            .positions
+            .chunks_exact(3)
+            .filter(|p| {
+                let p = [p[0].to_native(), p[1].to_native(), p[2].to_native()];
+                p.iter().any(|x| !(0.0..=1.0).contains(x)) || grid.mass[grid.cell_index(&p)] == 0.0
+            })
+            .count();
+        println!(
+            "  map {:?}: {outside} of {n} points ({:.2}%) in empty cells of its grid or outside the cube",
+            spec.name,
+            100.0 * outside as f64 / f64::from(n)
+        );
+    }
     if steps > 0 {
         let s = RenderSettings {
             size,

@@ -11,6 +11,10 @@
 //! covers `[x/W, (x+1)/W] × [y/H, (y+1)/H]` and the grid buffer is the image in its natural row-major
 //! order. Volumes and BRDF grids follow the same rule with their own axes (x fastest).
 //!
+//! Volumes (`.vol`) and meshes (`.obj`): axis 0 = x, axis 1 = y, axis 2 = z. A `.vol` grid's cells
+//! are the grid's cells (it fills the cube); a mesh is placed by `[mesh] fit` and voxelized at
+//! `[mesh] resolution` with mass 1 inside, 0 outside. Details in [`crate::volume`].
+//!
 //! BRDFs (isotropic, measured): axis 0 = θi, axis 1 = θo, axis 2 = φd = φo − φi, with
 //! `(θi, θo, φd) ∈ [0, π/2] × [0, π/2] × [0, π]` mapped linearly to `[0,1]³` (φd is folded into
 //! `[0, π]` by isotropy and reciprocity). The grid is `res³` cells (`[brdf] resolution`, default
