@@ -262,7 +262,9 @@ fn runtime_3d_queries_equal_brute_force() {
     VolFile::density([n; 3], data)
         .write(&dir.join("blob.vol"))
         .unwrap();
+    // The uniform box proxy here (the other tests use the Gaussian one).
     let body = manifest_head(1500, "exact", "resolution = 16")
+        .replace("kind = \"gaussian\"", "kind = \"uniform\"")
         + &input("cube", "cube.obj")
         + &input("ball", "ball.obj")
         + &input("blob", "blob.vol");
@@ -270,7 +272,9 @@ fn runtime_3d_queries_equal_brute_force() {
     bake(&m, &BakeOptions::default()).unwrap();
     let archives = Archives::load(&m).unwrap();
     let maps = archives.maps().unwrap();
-    let blend = Blend::new(archives.proxy().unwrap(), &maps).unwrap();
+    let proxy = archives.proxy().unwrap();
+    assert!(proxy.archived().description.contains("Uniform"));
+    let blend = Blend::new(proxy, &maps).unwrap();
     let w = [0.2f32, 0.3, 0.5];
     let pts = blended(&blend, &w);
     let sigma = 0.05f32;
