@@ -675,3 +675,36 @@ fn bad_vol_files_name_the_byte_offset() {
         "{e}"
     );
 }
+
+/// Under `fit = "common"` a mesh's grid depends on every mesh file (the shared box): editing one
+/// mesh rebakes the others' maps, and `plan` declares every mesh as an input of each mesh action.
+/// Under `fit = "each"` it rebakes only its own map.
+#[test]
+fn common_fit_keys_and_plans_depend_on_every_mesh() {
+    use otbake::bake::Status;
+    let dir = scratch("vol-common");
+    for (fit, rebaked) in [("each", vec!["b"]), ("common", vec!["a", "b"])] {
+        write_obj(&dir, "a.obj", &cuboid([0.0; 3], [1.0; 3]));
+        write_obj(&dir, "b.obj", &icosphere([0.0; 3], 1.0, 2));
+        let body = manifest_head(300, "exact", &format!("resolution = 8\nfit = \"{fit}\""))
+            .replace("dir = \"out\"", &format!("dir = \"out-{fit}\""))
+            + &input("a", "a.obj")
+            + &input("b", "b.obj");
+        let m = Manifest::load(&write_manifest(&dir, &format!("{fit}.toml"), &body)).unwrap();
+        bake(&m, &BakeOptions::default()).unwrap();
+        // A bigger ball changes the union of the boxes.
+        write_obj(&dir, "b.obj", &icosphere([0.0; 3], 3.0, 2));
+        let report = bake(&m, &BakeOptions::default()).unwrap();
+        let built: Vec<&str> = report
+            .products
+            .iter()
+            .filter(|p| p.status == Status::Built)
+            .map(|p| p.name.as_str())
+            .collect();
+        assert_eq!(built, rebaked, "fit = {fit}");
+        let actions = otbake::plan::actions(&m, Path::new("otbake"));
+        let a = actions.iter().find(|x| x.id == "a").unwrap();
+        let reads_b = a.inputs.iter().any(|p| p.ends_with("b.obj"));
+        assert_eq!(reads_b, fit == "common", "fit = {fit}: {:?}", a.inputs);
+    }
+}
