@@ -132,24 +132,28 @@ pub fn export<'a>(
     let blend = open(proxy, maps)?;
     with_prepared(&blend, weights, |prep| {
         let layer = res * res;
-        let mut values = vec![PointValue::default(); layer * res];
+        let mut mass = vec![0f32; layer * res];
         let r = res as u32;
-        values
-            .par_chunks_mut(layer)
+        // One z layer per region query; only the layer's point values are held at a time.
+        mass.par_chunks_mut(layer)
             .enumerate()
-            .try_for_each(|(z, out)| {
-                let region = Region {
-                    res: [r, r, r, 1],
-                    start: [0, 0, z as u32, 0],
-                    size: [r, r, 1, 1],
-                };
-                prep.point_grid(kernel, region, out)
-            })
+            .try_for_each_init(
+                || vec![PointValue::default(); layer],
+                |values, (z, out)| {
+                    let region = Region {
+                        res: [r, r, r, 1],
+                        start: [0, 0, z as u32, 0],
+                        size: [r, r, 1, 1],
+                    };
+                    prep.point_grid(kernel, region, values)?;
+                    for (m, v) in out.iter_mut().zip(values.iter()) {
+                        *m = v.mass;
+                    }
+                    Ok(())
+                },
+            )
             .map_err(runtime("point query"))?;
-        Ok(VolFile::density(
-            [res; 3],
-            values.iter().map(|v| v.mass).collect(),
-        ))
+        Ok(VolFile::density([res; 3], mass))
     })
 }
 
