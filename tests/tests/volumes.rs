@@ -474,6 +474,16 @@ fn render_slice_and_volume_commands() {
         "0.04",
     ];
     assert_eq!(threads("1", "v1.vol", &args), threads("2", "v2.vol", &args));
+    // So are bakes of mesh maps (voxelization, sampling and solve).
+    let args = [
+        "bake-one",
+        "m.toml",
+        "--product",
+        "ball",
+        "--proxy",
+        "out/proxy.otb",
+    ];
+    assert_eq!(threads("1", "b1.otb", &args), threads("2", "b2.otb", &args));
 
     let e = otbake_err(
         &dir,
