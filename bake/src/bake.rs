@@ -143,6 +143,9 @@ fn input_identity(
             &(spec.options.brdf_resolution as u64).to_le_bytes(),
         );
     }
+    if spec.kind == input::InputKind::Volume {
+        key.debug("volume-fit", &spec.options.volume_fit);
+    }
     if spec.kind == input::InputKind::Mesh {
         let mesh = &spec.options.mesh;
         key.field("mesh-resolution", &(mesh.resolution as u64).to_le_bytes())

@@ -30,11 +30,15 @@
 //! resolution = 128              # grid cells per axis (default 128)
 //! fit = "each"                  # each (own bounding box) | common (one box for all meshes)
 //! margin = 0.05                 # empty border on every side of the cube (default 0.05)
+//!
+//! [volume]                      # optional; for .vol inputs (see volume::vol)
+//! fit = "stretch"               # stretch (fill the cube) | pad (pad cubic cells to a cube)
 //! ```
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
 use crate::solve::{ExactSettings, SlicedSettings, SolverSettings};
+use crate::volume::vol::VolFit;
 use crate::volume::voxelize::{Fit, MAX_MARGIN};
 use serde::Deserialize;
 use std::fmt;
@@ -238,6 +242,14 @@ impl Manifest {
                 options.mesh.margin = v;
             }
             common_fit = m.fit.as_ref().map(|f| *f.get_ref()) == Some(RawFit::Common);
+        }
+        if let Some(v) = &raw.volume {
+            if let Some(f) = &v.fit {
+                options.volume_fit = match f.get_ref() {
+                    RawVolFit::Stretch => VolFit::Stretch,
+                    RawVolFit::Pad => VolFit::Pad,
+                };
+            }
         }
         let mut inputs = Vec::new();
         for input in &raw.inputs {
@@ -490,6 +502,20 @@ struct RawManifest {
     inputs: Vec<RawInput>,
     brdf: Option<RawBrdf>,
     mesh: Option<RawMesh>,
+    volume: Option<RawVolume>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawVolume {
+    fit: Option<Spanned<RawVolFit>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum RawVolFit {
+    Stretch,
+    Pad,
 }
 
 #[derive(Deserialize)]
@@ -668,5 +694,20 @@ density = "inverted"
         }
         let e = manifest(&format!("{body}density = \"alpha\"\n")).unwrap_err();
         assert!(e.message.contains("3D input"), "{e}");
+    }
+
+    #[test]
+    fn volume_section_sets_the_fit() {
+        let body = GOOD
+            .replace("duck.png", "../volumes/smoke_44x45x53.vol")
+            .replace("density = \"inverted\"\n", "");
+        let m = manifest(&body).unwrap();
+        assert_eq!(m.inputs[0].kind, InputKind::Volume);
+        assert_eq!(m.inputs[0].options.volume_fit, VolFit::Stretch);
+        let m = manifest(&format!("{body}[volume]\nfit = \"pad\"\n")).unwrap();
+        assert_eq!(m.inputs[0].options.volume_fit, VolFit::Pad);
+        let e = manifest(&format!("{body}[volume]\nfit = \"crop\"\n")).unwrap_err();
+        assert_eq!(e.line, 13, "{e}");
+        assert!(e.message.contains("crop"), "{e}");
     }
 }

@@ -115,6 +115,8 @@ pub struct LoadOptions {
     pub brdf_resolution: usize,
     /// Resolution and placement of mesh grids.
     pub mesh: crate::volume::voxelize::MeshOptions,
+    /// Placement of `.vol` grids.
+    pub volume_fit: crate::volume::vol::VolFit,
 }
 
 impl Default for LoadOptions {
@@ -122,6 +124,7 @@ impl Default for LoadOptions {
         LoadOptions {
             brdf_resolution: crate::brdf::DEFAULT_RESOLUTION,
             mesh: Default::default(),
+            volume_fit: Default::default(),
         }
     }
 }
@@ -161,7 +164,7 @@ pub fn load_with(
             let lattice = crate::brdf::cornell::Cornell::read(path)?.lattice();
             crate::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
         }
-        Some(InputKind::Volume) => crate::volume::vol::load(path),
+        Some(InputKind::Volume) => crate::volume::vol::load(path, options.volume_fit),
         Some(InputKind::Mesh) => crate::volume::voxelize::load(path, &options.mesh),
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),

@@ -19,9 +19,11 @@
 //!
 //! As a density input, a 1-channel grid's cell `(x, y, z)` becomes the [`Grid`] cell with axis 0 =
 //! x, axis 1 = y, axis 2 = z (x fastest in both, so the buffer is the file's value order), covering
-//! `[x/nx, (x+1)/nx] × [y/ny, (y+1)/ny] × [z/nz, (z+1)/nz]`: **the grid fills the unit cube**, axis
-//! by axis. The header's bounding box does not place it (a map lives in `[0,1]³`, whatever the
-//! volume's world coordinates); it is kept for writing the file back.
+//! `[x/nx, (x+1)/nx] × [y/ny, (y+1)/ny] × [z/nz, (z+1)/nz]`: by default **the grid fills the unit
+//! cube**, axis by axis ([`VolFit::Stretch`]); the header's bounding box does not place it (a map
+//! lives in `[0,1]³`, whatever the volume's world coordinates). With `[volume] fit = "pad"`
+//! ([`VolFit::Pad`]) a grid of cubic cells is padded with empty cells to a cube and centered, so it
+//! keeps its proportions (the box only checks that the cells are cubic).
 
 use crate::input::{Grid, InputError};
 use std::path::{Path, PathBuf};
@@ -283,9 +285,67 @@ impl VolFile {
     }
 }
 
-/// Loads a `.vol` file as a density input.
-pub fn load(path: &Path) -> Result<Grid, InputError> {
-    Ok(VolFile::read(path)?.to_grid(path)?)
+/// How a `.vol` grid is placed in the unit cube (`[volume] fit` in the manifest).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VolFit {
+    /// The grid fills the cube axis by axis (cells become boxes of `1/nx × 1/ny × 1/nz`).
+    #[default]
+    Stretch,
+    /// The grid is padded with empty cells to `N³`, `N` its largest resolution, and centered
+    /// (`(N − n)/2` cells before, rounded down), so its proportions are kept. Needs cubic cells: the
+    /// header's bounding box divided by the resolution must give the same cell size on every axis
+    /// (within 1%).
+    Pad,
+}
+
+/// Largest relative difference between cell sizes that [`VolFit::Pad`] accepts.
+pub const PAD_TOLERANCE: f64 = 0.01;
+
+impl VolFile {
+    /// `to_grid`, then the placement of `fit`.
+    pub fn to_placed_grid(&self, path: &Path, fit: VolFit) -> Result<Grid, VolError> {
+        let grid = self.to_grid(path)?;
+        if fit == VolFit::Stretch {
+            return Ok(grid);
+        }
+        let cells: Vec<f64> = (0..3)
+            .map(|k| (f64::from(self.bbox[k + 3]) - f64::from(self.bbox[k])) / self.dims[k] as f64)
+            .collect();
+        let (lo, hi) = cells
+            .iter()
+            .fold((f64::INFINITY, 0f64), |(a, b), &c| (a.min(c), b.max(c)));
+        if !(lo.is_finite() && lo > 0.0 && hi <= lo * (1.0 + PAD_TOLERANCE)) {
+            return Err(VolError::Format {
+                path: path.to_path_buf(),
+                offset: 24,
+                message: format!(
+                    "`volume.fit = \"pad\"` needs cubic cells, but the bounding box {:?} over {:?} cells gives cell sizes {cells:?}; use fit = \"stretch\" or fix the bounding box",
+                    self.bbox, self.dims
+                ),
+            });
+        }
+        let n = *self.dims.iter().max().expect("three axes");
+        let start = self.dims.map(|d| (n - d) / 2);
+        let [nx, ny, nz] = self.dims;
+        let mut mass = vec![0f32; n * n * n];
+        for z in 0..nz {
+            for y in 0..ny {
+                let src = (z * ny + y) * nx;
+                let dst = ((z + start[2]) * n + y + start[1]) * n + start[0];
+                mass[dst..dst + nx].copy_from_slice(&grid.mass[src..src + nx]);
+            }
+        }
+        Grid::new(vec![n; 3], mass, Vec::new()).map_err(|e| VolError::Format {
+            path: path.to_path_buf(),
+            offset: HEADER_BYTES,
+            message: e.to_string(),
+        })
+    }
+}
+
+/// Loads a `.vol` file as a density input placed by `fit`.
+pub fn load(path: &Path, fit: VolFit) -> Result<Grid, InputError> {
+    Ok(VolFile::read(path)?.to_placed_grid(path, fit)?)
 }
 
 #[cfg(test)]
@@ -426,6 +486,38 @@ mod tests {
     }
 
     #[test]
+    fn padding_keeps_proportions_and_mass() {
+        // 3 × 2 × 4 cells of side 0.5: padded to 4³, x starts at cell 0, y at 1, z at 0.
+        let mut v = sample();
+        v.bbox = [0.0, 0.0, 0.0, 1.5, 1.0, 2.0];
+        let g = v.to_placed_grid(Path::new("t"), VolFit::Pad).unwrap();
+        assert_eq!(g.dims, vec![4; 3]);
+        assert_eq!(
+            g.total_mass(),
+            v.to_grid(Path::new("t")).unwrap().total_mass()
+        );
+        // File cell (x 2, y 1, z 3) → grid cell (2, 2, 3).
+        assert_eq!(g.mass[2 + 4 * (2 + 4 * 3)], v.data[2 + 3 * (1 + 2 * 3)]);
+        assert_eq!(g.mass[3 + 4 * (2 + 4 * 3)], 0.0);
+        // y cell 0 is padding.
+        assert_eq!(g.mass[2 + 4 * 4 * 3], 0.0);
+        // Non-cubic cells are refused, naming the bounding box's offset.
+        v.bbox = [0.0, 0.0, 0.0, 3.0, 1.0, 2.0];
+        let e = v.to_placed_grid(Path::new("t"), VolFit::Pad).unwrap_err();
+        assert!(
+            e.to_string().contains("byte offset 24") && e.to_string().contains("cubic"),
+            "{e}"
+        );
+        // Stretch ignores the box.
+        assert_eq!(
+            v.to_placed_grid(Path::new("t"), VolFit::Stretch)
+                .unwrap()
+                .dims,
+            vec![3, 2, 4]
+        );
+    }
+
+    #[test]
     fn the_shared_smoke_grid_round_trips_byte_for_byte() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../shared/data/volumes/smoke_44x45x53.vol");
@@ -435,5 +527,8 @@ mod tests {
         assert_eq!(v.to_bytes(), bytes);
         let g = v.to_grid(&path).unwrap();
         assert!((g.mean_mass() - 0.108).abs() < 1e-3, "{}", g.mean_mass());
+        // Its cells are cubic within 0.4%: it can be padded to 53³.
+        let padded = v.to_placed_grid(&path, VolFit::Pad).unwrap();
+        assert_eq!(padded.dims, vec![53; 3]);
     }
 }
