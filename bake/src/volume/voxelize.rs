@@ -23,8 +23,10 @@
 //! ([`super::winding`]), else 0. For a closed surface that is exactly "the center is inside", for
 //! either orientation of the triangles; for a surface with holes the threshold fills each hole like
 //! a soap film (a mesh missing one face of a cube still gives the cube, minus a thin dent under the
-//! hole). Cells whose centers lie outside the mesh's bounding box are empty without a query: seen
-//! from outside the convex hull a surface covers less than a hemisphere, so `|w| < ½` there.
+//! hole). Cells whose centers lie outside the mesh's bounding box are empty without a query: there
+//! the whole surface lies in a half-space seen from the center, so `w = 0` for a closed surface and
+//! `|w| < ½` for any surface whose projection does not cover itself twice with the same sign; the
+//! solid is thus always bounded by the mesh's box, whatever the surface.
 //!
 //! Importance sampling then draws points uniformly inside the inside cells, so samples stray at most
 //! one cell (`√3 / res` in distance) outside the true surface: the voxelization is the input.
