@@ -94,15 +94,29 @@ fn main() -> anyhow::Result<()> {
     println!("  Blend::point    uniform in the cube {blend_uniform:.2} us/call, on the blend {blend_on:.2} us/call");
     println!("  Prepared::point uniform in the cube {prep_uniform:.2} us/call, on the blend {prep_on:.2} us/call");
     println!("  (checksum {sink:.3})");
-    for (spec, map) in m.inputs.iter().zip(&maps) {
+    let mut single = vec![0f32; sizes.total()];
+    for (i, spec) in m.inputs.iter().enumerate() {
         let grid = otbake::bake::load_input(spec)?;
-        let outside = map
-            .archived()
-            .positions
+        // The map's points: the blend with weight 1 on this input.
+        let mut e = vec![0.0; k];
+        e[i] = 1.0;
+        let (positions, rest) = single.split_at_mut(sizes.positions);
+        let (colors, rest) = rest.split_at_mut(sizes.colors);
+        let (node_boxes, node_colors) = rest.split_at_mut(sizes.node_boxes);
+        let one = blend.prepare(
+            &e,
+            PreparedBuffers {
+                positions,
+                colors,
+                node_boxes,
+                node_colors,
+            },
+        )?;
+        let outside = one
+            .positions()
             .chunks_exact(3)
             .filter(|p| {
-                let p = [p[0].to_native(), p[1].to_native(), p[2].to_native()];
-                p.iter().any(|x| !(0.0..=1.0).contains(x)) || grid.mass[grid.cell_index(&p)] == 0.0
+                p.iter().any(|x| !(0.0..=1.0).contains(x)) || grid.mass[grid.cell_index(p)] == 0.0
             })
             .count();
         println!(

@@ -378,21 +378,26 @@ impl Camera {
 }
 
 /// The box of every map's points (so of every blend's points: blended points are convex
-/// combinations of the maps'), grown by the kernel's 3σ reach.
-fn scene_box(maps: &[Map<'_>], sigma: f32) -> (V3, V3) {
+/// combinations of the maps'), grown by the kernel's 3σ reach. Each map's points are read through
+/// the runtime, as the blend with weight 1 on that map.
+fn scene_box(blend: &Blend<'_, '_>, sigma: f32) -> Result<(V3, V3), VolumeRenderError> {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for m in maps {
-        for p in m.archived().positions.chunks_exact(3) {
-            for k in 0..3 {
-                let x = f64::from(p[k].to_native());
-                lo[k] = lo[k].min(x);
-                hi[k] = hi[k].max(x);
+    for k in 0..blend.k() {
+        let mut w = vec![0.0; blend.k()];
+        w[k] = 1.0;
+        with_prepared(blend, &w, |prep| {
+            for p in prep.positions().chunks_exact(3) {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(f64::from(p[a]));
+                    hi[a] = hi[a].max(f64::from(p[a]));
+                }
             }
-        }
+            Ok(())
+        })?;
     }
     let r = 3.0 * f64::from(sigma);
-    (lo.map(|x| x - r), hi.map(|x| x + r))
+    Ok((lo.map(|x| x - r), hi.map(|x| x + r)))
 }
 
 /// Which cells of a coarse grid over the camera's box can hold density: a cell is empty when a
@@ -553,9 +558,20 @@ pub fn render<'a>(
 ) -> Result<Rgba, VolumeRenderError> {
     let kernel = check_render(s)?;
     let blend = open(proxy, maps)?;
-    let (lo, hi) = scene_box(maps, s.sigma);
+    let scene = scene_box(&blend, s.sigma)?;
+    render_in(&blend, weights, s, kernel, scene)
+}
+
+/// [`render`] with the scene's box already known.
+fn render_in(
+    blend: &Blend<'_, '_>,
+    weights: &[f32],
+    s: &RenderSettings,
+    kernel: Kernel,
+    (lo, hi): (V3, V3),
+) -> Result<Rgba, VolumeRenderError> {
     let cam = Camera::new(lo, hi, s);
-    with_prepared(&blend, weights, |prep| {
+    with_prepared(blend, weights, |prep| {
         let occupancy = Occupancy::new(prep, lo, hi, s.sigma)?;
         march(prep, &cam, s, kernel, Some(&occupancy))
     })
@@ -577,6 +593,9 @@ pub fn render_triangle(
         )));
     }
     let (cells, (cols, rows)) = grid_cells(3, steps)?;
+    let kernel = check_render(s)?;
+    let blend = open(archives.proxy()?, &maps)?;
+    let scene = scene_box(&blend, s.sigma)?;
     let half = s.size / 2;
     let mut out = Rgba::filled(
         cols * half + (s.size - half),
@@ -584,7 +603,7 @@ pub fn render_triangle(
         [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 1.0],
     );
     for (c, r, w) in cells {
-        let img = render(archives.proxy()?, &maps, &w, s)?;
+        let img = render_in(&blend, &w, s, kernel, scene)?;
         out.blit(&img, c * half, r * s.size);
     }
     Ok(out)
@@ -622,7 +641,7 @@ mod tests {
             ..Default::default()
         };
         let kernel = check_render(&s).unwrap();
-        let (lo, hi) = scene_box(&maps, s.sigma);
+        let (lo, hi) = scene_box(&blend, s.sigma).unwrap();
         let cam = Camera::new(lo, hi, &s);
         // The ball leaves the corners of its box empty.
         with_prepared(&blend, &[0.0, 1.0], |prep| {
