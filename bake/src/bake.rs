@@ -21,6 +21,7 @@ use crate::proxy;
 use crate::sample;
 use crate::solve::{self, Problem};
 use crate::store::{self, Store};
+use crate::volume::voxelize::Fit;
 use otbake_formats::{ArchiveKind, Composite};
 use rkyv::util::AlignedVec;
 use std::path::{Path, PathBuf};
@@ -141,6 +142,31 @@ fn input_identity(
             "brdf-resolution",
             &(spec.options.brdf_resolution as u64).to_le_bytes(),
         );
+    }
+    if spec.kind == input::InputKind::Volume {
+        key.debug("volume-fit", &spec.options.volume_fit);
+    }
+    if spec.kind == input::InputKind::Mesh {
+        let mesh = &spec.options.mesh;
+        key.field("mesh-resolution", &(mesh.resolution as u64).to_le_bytes())
+            .field("mesh-margin", &mesh.margin.to_bits().to_le_bytes());
+        match &mesh.fit {
+            Fit::Each => {
+                key.field("mesh-fit", b"each");
+            }
+            Fit::Common(paths) => {
+                // The common box depends on every mesh's contents, not on their order or names.
+                let mut digests = paths
+                    .iter()
+                    .map(|p| index.digest(p))
+                    .collect::<Result<Vec<_>, _>>()?;
+                digests.sort();
+                key.field("mesh-fit", b"common");
+                for d in &digests {
+                    key.field("mesh-fit-file", d);
+                }
+            }
+        }
     }
     Ok(())
 }

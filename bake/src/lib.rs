@@ -4,7 +4,8 @@
 //! a shared [`proxy`], orders the proxy into the implicit query tree ([`tree`]), solves a transport map
 //! from the proxy to each input ([`solve`]), and writes one proxy archive and one map archive per
 //! input ([`archive`], [`bake`]). The runtime crate `otbake-runtime` blends those archives; this crate
-//! uses it for its own images ([`render`]).
+//! uses it for its own images ([`render`]). 3D inputs (volumes, meshes) and their renders are in
+//! [`volume`].
 pub mod archive;
 pub mod bake;
 pub mod brdf;
@@ -27,3 +28,4 @@ pub mod solve;
 pub mod store;
 pub mod texture;
 pub mod tree;
+pub mod volume;

@@ -232,6 +232,97 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Write one blend of 3D inputs as a Mitsuba .vol grid (res³ point queries, values in the inputs' units).
+    Volume {
+        /// Manifest of 3D inputs (.obj meshes, .vol grids).
+        manifest: PathBuf,
+        /// One non-negative weight per input, in manifest order, summing to 1.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            required = true,
+            allow_hyphen_values = true
+        )]
+        weights: Vec<f32>,
+        /// Cells per axis.
+        #[arg(long, default_value_t = 64)]
+        res: usize,
+        /// Kernel standard deviation in unit-cube units.
+        #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
+        sigma: f32,
+        /// Output grid (.vol).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Ray-march a blend of 3D inputs (emission-absorption through point queries), or a triangle of 3-way blends.
+    Render {
+        /// Manifest of 3D inputs.
+        manifest: PathBuf,
+        /// One non-negative weight per input, in manifest order, summing to 1.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_hyphen_values = true,
+            required_unless_present = "triangle",
+            conflicts_with = "triangle"
+        )]
+        weights: Option<Vec<f32>>,
+        /// Instead of one blend: a triangle of 3-way blends with this many rows (paper Fig. 11).
+        #[arg(long)]
+        triangle: Option<usize>,
+        /// Image side in pixels (per blend).
+        #[arg(long, default_value_t = 256)]
+        size: usize,
+        /// Kernel standard deviation in unit-cube units.
+        #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
+        sigma: f32,
+        /// Camera azimuth in degrees about the y axis (0: looking along -z, 90: along -x).
+        #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
+        azimuth: f64,
+        /// Camera elevation in degrees.
+        #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
+        elevation: f64,
+        /// Extinction per unit length and unit of value (a mesh's inside is about 1).
+        #[arg(long, default_value_t = 60.0)]
+        extinction: f32,
+        /// Ray-marching step in kernel sigmas.
+        #[arg(long, default_value_t = 0.75)]
+        step: f32,
+        /// Output image (.png or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Render a blend of 3D inputs on an axis-aligned plane as a grey image.
+    Slice {
+        /// Manifest of 3D inputs.
+        manifest: PathBuf,
+        /// One non-negative weight per input, in manifest order, summing to 1.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            required = true,
+            allow_hyphen_values = true
+        )]
+        weights: Vec<f32>,
+        /// The axis the plane is perpendicular to.
+        #[arg(long, value_enum, default_value_t = otbake::volume::render::Axis::Z)]
+        axis: otbake::volume::render::Axis,
+        /// Position of the plane along the axis, in [0, 1].
+        #[arg(long, default_value_t = 0.5)]
+        at: f32,
+        /// Image side in pixels.
+        #[arg(long, default_value_t = 256)]
+        size: usize,
+        /// Kernel standard deviation in unit-cube units.
+        #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
+        sigma: f32,
+        /// Grey = value × scale (default: the slice's largest value is white).
+        #[arg(long)]
+        scale: Option<f32>,
+        /// Output image (.png or .exr).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Describe an archive: header, sizes, keys, validation.
     Inspect {
         /// Archive file (.otb).
@@ -553,6 +644,79 @@ fn run(cli: Cli) -> Result<()> {
             check_weight_count(&m, &manifest, &weights)?;
             let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
             otbake::brdf::render::export_merl(&b, &weights)?.write(&output)?;
+        }
+        Command::Volume {
+            manifest,
+            weights,
+            res,
+            sigma,
+            output,
+        } => {
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            check_weight_count(&m, &manifest, &weights)?;
+            let archives = Archives::load(&m)?;
+            let maps = archives.maps()?;
+            otbake::volume::render::export(archives.proxy()?, &maps, &weights, res, sigma)?
+                .write(&output)?;
+        }
+        Command::Render {
+            manifest,
+            weights,
+            triangle,
+            size,
+            sigma,
+            azimuth,
+            elevation,
+            extinction,
+            step,
+            output,
+        } => {
+            let settings = otbake::volume::render::RenderSettings {
+                size,
+                sigma,
+                azimuth,
+                elevation,
+                extinction,
+                step,
+            };
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            let archives = Archives::load(&m)?;
+            let img = match (weights, triangle) {
+                (Some(w), _) => {
+                    check_weight_count(&m, &manifest, &w)?;
+                    let maps = archives.maps()?;
+                    otbake::volume::render::render(archives.proxy()?, &maps, &w, &settings)?
+                }
+                (None, Some(steps)) => {
+                    otbake::volume::render::render_triangle(&archives, steps, &settings)?
+                }
+                (None, None) => bail!("give --weights a,b,.. or --triangle STEPS"),
+            };
+            write_image(&output, &img)?;
+        }
+        Command::Slice {
+            manifest,
+            weights,
+            axis,
+            at,
+            size,
+            sigma,
+            scale,
+            output,
+        } => {
+            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            check_weight_count(&m, &manifest, &weights)?;
+            let archives = Archives::load(&m)?;
+            let maps = archives.maps()?;
+            let settings = otbake::volume::render::SliceSettings {
+                axis,
+                at,
+                size,
+                sigma,
+                scale,
+            };
+            let img = otbake::volume::render::slice(archives.proxy()?, &maps, &weights, &settings)?;
+            write_image(&output, &img)?;
         }
         Command::Inspect { archive } => {
             let bytes = std::fs::read(&archive)

@@ -35,11 +35,21 @@
 //! node_boxes = "u16"            # f32 | u16 (on the map's bounds, rounded outward)
 //! colors = "u8"                 # f32 | u16 | u8 | none (density-only scenes)
 //! node_colors = true            # node color sums, for range queries of color (LOD)
+//!
+//! [mesh]                        # optional; for .obj inputs (see volume::voxelize)
+//! resolution = 128              # grid cells per axis (default 128)
+//! fit = "each"                  # each (own bounding box) | common (one box for all meshes)
+//! margin = 0.05                 # empty border on every side of the cube (default 0.05)
+//!
+//! [volume]                      # optional; for .vol inputs (see volume::vol)
+//! fit = "stretch"               # stretch (fill the cube) | pad (pad cubic cells to a cube)
 //! ```
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
 use crate::solve::{ExactSettings, MapKind, SinkhornSettings, SlicedSettings, SolverSettings};
+use crate::volume::vol::VolFit;
+use crate::volume::voxelize::{Fit, MAX_MARGIN};
 use otbake_formats::storage::{Precision, Storage};
 use serde::Deserialize;
 use std::fmt;
@@ -222,6 +232,38 @@ impl Manifest {
                 options.brdf_resolution = v as usize;
             }
         }
+        let mut common_fit = false;
+        if let Some(m) = &raw.mesh {
+            if let Some(r) = &m.resolution {
+                let v = *r.get_ref();
+                if !(2..=1024).contains(&v) {
+                    return Err(at(
+                        Some(r.span()),
+                        format!("`mesh.resolution` = {v} is out of range: use 2 to 1024 cells per axis (default {}; tests 16-32)", crate::volume::voxelize::DEFAULT_RESOLUTION),
+                    ));
+                }
+                options.mesh.resolution = v as usize;
+            }
+            if let Some(margin) = &m.margin {
+                let v = *margin.get_ref();
+                if !(v.is_finite() && (0.0..=MAX_MARGIN).contains(&v)) {
+                    return Err(at(
+                        Some(margin.span()),
+                        format!("`mesh.margin` = {v} is out of range: use 0 to {MAX_MARGIN} (a fraction of the cube left empty on every side; default {})", crate::volume::voxelize::DEFAULT_MARGIN),
+                    ));
+                }
+                options.mesh.margin = v;
+            }
+            common_fit = m.fit.as_ref().map(|f| *f.get_ref()) == Some(RawFit::Common);
+        }
+        if let Some(v) = &raw.volume {
+            if let Some(f) = &v.fit {
+                options.volume_fit = match f.get_ref() {
+                    RawVolFit::Stretch => VolFit::Stretch,
+                    RawVolFit::Pad => VolFit::Pad,
+                };
+            }
+        }
         let mut inputs = Vec::new();
         for input in &raw.inputs {
             let name = input.name.get_ref();
@@ -260,12 +302,17 @@ impl Manifest {
                     ),
                 ));
             };
-            if kind.is_brdf() {
+            if !kind.has_channels() {
                 if let Some(d) = &input.density {
                     if *d.get_ref() != DensityChannel::Luminance {
+                        let why = if kind.is_brdf() {
+                            "is a BRDF: its density is always the luminance"
+                        } else {
+                            "is a 3D input: its density is its values (volumes) or uniform inside (meshes)"
+                        };
                         return Err(at(
                             Some(d.span()),
-                            format!("input {name:?} is a BRDF: its density is always the luminance; remove `density`"),
+                            format!("input {name:?} {why}; remove `density`"),
                         ));
                     }
                 }
@@ -286,8 +333,19 @@ impl Manifest {
                     .map(|d| *d.get_ref())
                     .unwrap_or_default(),
                 seed: input.seed.unwrap_or(0),
-                options,
+                options: options.clone(),
             });
+        }
+        if common_fit {
+            // Every mesh is placed by the union of all mesh inputs' bounding boxes.
+            let meshes: Vec<PathBuf> = inputs
+                .iter()
+                .filter(|i| i.kind == InputKind::Mesh)
+                .map(|i| i.path.clone())
+                .collect();
+            for i in inputs.iter_mut().filter(|i| i.kind == InputKind::Mesh) {
+                i.options.mesh.fit = Fit::Common(meshes.clone());
+            }
         }
 
         let p = &raw.proxy;
@@ -618,6 +676,8 @@ struct RawManifest {
     inputs: Vec<RawInput>,
     brdf: Option<RawBrdf>,
     storage: Option<RawStorage>,
+    mesh: Option<RawMesh>,
+    volume: Option<RawVolume>,
 }
 
 #[derive(Deserialize)]
@@ -669,6 +729,34 @@ enum RawColors {
     F32,
     U16,
     U8,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawVolume {
+    fit: Option<Spanned<RawVolFit>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum RawVolFit {
+    Stretch,
+    Pad,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMesh {
+    resolution: Option<Spanned<u64>>,
+    fit: Option<Spanned<RawFit>>,
+    margin: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum RawFit {
+    Each,
+    Common,
 }
 
 #[derive(Deserialize)]
@@ -873,5 +961,53 @@ density = "inverted"
         assert!(e.message.contains("needs colors"), "{e}");
         let e = manifest(&format!("{GOOD}[storage]\nprecision = \"u8\"\n")).unwrap_err();
         assert!(e.message.contains("unknown field"), "{e}");
+    }
+
+    #[test]
+    fn mesh_section_sets_resolution_margin_and_common_fit() {
+        let body = GOOD
+            .replace("duck.png", "../meshes/torus.obj")
+            .replace("density = \"inverted\"\n", "")
+            + "[[input]]\nname = \"cow\"\npath = \"../meshes/spot_triangulated.obj\"\n";
+        let m = manifest(&body).unwrap();
+        assert_eq!(m.inputs[0].kind, InputKind::Mesh);
+        assert_eq!(m.inputs[0].options.mesh, Default::default());
+        let m = manifest(&format!(
+            "{body}[mesh]\nresolution = 32\nfit = \"common\"\nmargin = 0.1\n"
+        ))
+        .unwrap();
+        let all = vec![m.inputs[0].path.clone(), m.inputs[1].path.clone()];
+        for i in &m.inputs {
+            assert_eq!(i.options.mesh.resolution, 32);
+            assert_eq!(i.options.mesh.margin, 0.1);
+            assert_eq!(i.options.mesh.fit, Fit::Common(all.clone()));
+        }
+        for (bad, key) in [
+            ("resolution = 1", "mesh.resolution"),
+            ("margin = 0.5", "mesh.margin"),
+            ("fit = \"both\"", "both"),
+            ("size = 3", "size"),
+        ] {
+            let e = manifest(&format!("{body}[mesh]\n{bad}\n")).unwrap_err();
+            assert_eq!(e.line, 16, "{e}");
+            assert!(e.message.contains(key), "{e}");
+        }
+        let e = manifest(&format!("{body}density = \"alpha\"\n")).unwrap_err();
+        assert!(e.message.contains("3D input"), "{e}");
+    }
+
+    #[test]
+    fn volume_section_sets_the_fit() {
+        let body = GOOD
+            .replace("duck.png", "../volumes/smoke_44x45x53.vol")
+            .replace("density = \"inverted\"\n", "");
+        let m = manifest(&body).unwrap();
+        assert_eq!(m.inputs[0].kind, InputKind::Volume);
+        assert_eq!(m.inputs[0].options.volume_fit, VolFit::Stretch);
+        let m = manifest(&format!("{body}[volume]\nfit = \"pad\"\n")).unwrap();
+        assert_eq!(m.inputs[0].options.volume_fit, VolFit::Pad);
+        let e = manifest(&format!("{body}[volume]\nfit = \"crop\"\n")).unwrap_err();
+        assert_eq!(e.line, 13, "{e}");
+        assert!(e.message.contains("crop"), "{e}");
     }
 }

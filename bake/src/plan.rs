@@ -1,13 +1,16 @@
 //! `otbake plan`: the bake as a build graph of hermetic `bake-one` actions, for Ninja locally or a
 //! remote-execution system (Bazel, Buck2) at scale.
 //!
-//! Each action declares its inputs (the manifest, the input file, the proxy archive for maps) and its
+//! Each action declares its inputs (the manifest, the input file — for a mesh under `fit = "common"`
+//! every mesh file —, the proxy archive for maps) and its
 //! single output, and runs `otbake bake-one`, which reads nothing else and writes nothing else. The
 //! Ninja rules use `restat = 1`: `bake-one` leaves a current output untouched, so editing one input's
 //! line in the manifest rebakes that map only, even though every action depends on the manifest file.
 
 use crate::error::BakeError;
+use crate::input::InputKind;
 use crate::manifest::{Manifest, ProxySource};
+use crate::volume::voxelize::Fit;
 use std::path::{Path, PathBuf};
 
 /// Output format of a plan.
@@ -64,6 +67,12 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
     }];
     for input in &m.inputs {
         let o = abs(&m.map_archive(&input.name));
+        let mut inputs = vec![manifest.clone(), abs(&input.path)];
+        // A mesh placed by the common box reads every mesh input.
+        if let (InputKind::Mesh, Fit::Common(all)) = (input.kind, &input.options.mesh.fit) {
+            inputs.extend(all.iter().filter(|p| **p != input.path).map(|p| abs(p)));
+        }
+        inputs.push(proxy_out.clone());
         out.push(PlannedAction {
             id: input.name.clone(),
             argv: vec![
@@ -77,7 +86,7 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
                 "-o".into(),
                 s(&o),
             ],
-            inputs: vec![manifest.clone(), abs(&input.path), proxy_out.clone()],
+            inputs,
             outputs: vec![o],
         });
     }

@@ -11,6 +11,10 @@
 //! covers `[x/W, (x+1)/W] × [y/H, (y+1)/H]` and the grid buffer is the image in its natural row-major
 //! order. Volumes and BRDF grids follow the same rule with their own axes (x fastest).
 //!
+//! Volumes (`.vol`) and meshes (`.obj`): axis 0 = x, axis 1 = y, axis 2 = z. A `.vol` grid's cells
+//! are the grid's cells (it fills the cube); a mesh is placed by `[mesh] fit` and voxelized at
+//! `[mesh] resolution` with mass 1 inside, 0 outside. Details in [`crate::volume`].
+//!
 //! BRDFs (isotropic, measured): axis 0 = θi, axis 1 = θo, axis 2 = φd = φo − φi, with
 //! `(θi, θo, φd) ∈ [0, π/2] × [0, π/2] × [0, π]` mapped linearly to `[0,1]³` (φd is folded into
 //! `[0, π]` by isotropy and reciprocity). The grid is `res³` cells (`[brdf] resolution`, default
@@ -50,6 +54,10 @@ pub enum InputKind {
     Merl,
     /// Cornell irregularly sampled isotropic BRDF (`.brdf`): 3D over (θi, θo, φd).
     Cornell,
+    /// Mitsuba binary volume grid (`.vol`): a 3D density over the unit cube.
+    Volume,
+    /// Wavefront OBJ mesh (`.obj`): uniform density inside, voxelized (`[mesh]` settings).
+    Mesh,
 }
 
 /// File extensions (lower case) of every input kind.
@@ -60,6 +68,8 @@ pub const EXTENSIONS: &[(&str, InputKind)] = &[
     ("exr", InputKind::Image),
     ("binary", InputKind::Merl),
     ("brdf", InputKind::Cornell),
+    ("vol", InputKind::Volume),
+    ("obj", InputKind::Mesh),
 ];
 
 impl InputKind {
@@ -73,13 +83,19 @@ impl InputKind {
     pub fn dim(self) -> usize {
         match self {
             InputKind::Image => 2,
-            InputKind::Merl | InputKind::Cornell => 3,
+            InputKind::Merl | InputKind::Cornell | InputKind::Volume | InputKind::Mesh => 3,
         }
     }
 
     /// Whether inputs of this kind are BRDFs (resampled to a `[brdf] resolution` grid).
     pub fn is_brdf(self) -> bool {
         matches!(self, InputKind::Merl | InputKind::Cornell)
+    }
+
+    /// Whether inputs of this kind take a `density` channel (images only: BRDFs are luminance,
+    /// volumes are their values).
+    pub fn has_channels(self) -> bool {
+        self == InputKind::Image
     }
 
     /// `.png, .jpg, …`: for error messages.
@@ -93,16 +109,22 @@ impl InputKind {
 }
 
 /// Settings of how inputs are turned into grids, beyond the density channel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LoadOptions {
     /// Cells per axis of BRDF grids.
     pub brdf_resolution: usize,
+    /// Resolution and placement of mesh grids.
+    pub mesh: crate::volume::voxelize::MeshOptions,
+    /// Placement of `.vol` grids.
+    pub volume_fit: crate::volume::vol::VolFit,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
             brdf_resolution: crate::brdf::DEFAULT_RESOLUTION,
+            mesh: Default::default(),
+            volume_fit: Default::default(),
         }
     }
 }
@@ -125,6 +147,12 @@ pub fn load_with(
             message: format!("density `{channel}` does not apply to BRDFs: their density is the luminance (remove `density`)"),
         });
     }
+    if kind.is_some_and(|k| k.dim() == 3 && !k.is_brdf()) && channel != DensityChannel::Luminance {
+        return Err(InputError::Density3d {
+            path: path.to_path_buf(),
+            channel,
+        });
+    }
     let res = options.brdf_resolution;
     match kind {
         Some(InputKind::Image) => load_image(path, channel),
@@ -136,6 +164,8 @@ pub fn load_with(
             let lattice = crate::brdf::cornell::Cornell::read(path)?.lattice();
             crate::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
         }
+        Some(InputKind::Volume) => crate::volume::vol::load(path, options.volume_fit),
+        Some(InputKind::Mesh) => crate::volume::voxelize::load(path, &options.mesh),
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),
             ext: path
@@ -191,7 +221,7 @@ pub enum InputError {
         source: std::io::Error,
     },
 
-    #[error("input file {} has an unsupported extension {ext:?}: supported image files are .png, .jpg, .jpeg and .exr (convert the file to one of them)", path.display())]
+    #[error("input file {} has an unsupported extension {ext:?}: supported are {} (convert the file to one of them)", path.display(), InputKind::supported())]
     UnsupportedExtension { path: PathBuf, ext: String },
 
     #[error("cannot decode image {}: {message}; re-export it as an ordinary 8- or 16-bit PNG or a baseline JPEG", path.display())]
@@ -230,6 +260,18 @@ pub enum InputError {
 
     #[error("BRDF {}: {message}", path.display())]
     BrdfValue { path: PathBuf, message: String },
+
+    #[error(transparent)]
+    Volume(#[from] crate::volume::vol::VolError),
+
+    #[error(transparent)]
+    Mesh(#[from] crate::volume::mesh::MeshError),
+
+    #[error("density `{channel}` does not apply to {}: a volume's density is its values, a mesh's is uniform inside (remove `density`)", path.display())]
+    Density3d {
+        path: PathBuf,
+        channel: DensityChannel,
+    },
 
     #[error("invalid density grid: {0}")]
     GridShape(String),
