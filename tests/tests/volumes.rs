@@ -718,3 +718,37 @@ fn common_fit_keys_and_plans_depend_on_every_mesh() {
         assert_eq!(reads_b, fit == "common", "fit = {fit}: {:?}", a.inputs);
     }
 }
+
+/// The shipped manifests: the 1M ones load (paths, [mesh] and [volume] settings), the small ones
+/// bake and render.
+#[test]
+fn shipped_volume_manifests_load_and_the_small_ones_render() {
+    let root = otbake_tests::repo_root().join("manifests");
+    for (file, inputs) in [
+        ("volumes.toml", ["cow", "fish", "torus"].as_slice()),
+        ("smoke.toml", ["monkey", "smoke"].as_slice()),
+    ] {
+        let m = Manifest::load(&root.join(file)).unwrap();
+        let names: Vec<&str> = m.inputs.iter().map(|i| i.name.as_str()).collect();
+        assert_eq!(names, inputs, "{file}");
+        assert_eq!(m.proxy.samples, 1_000_000, "{file}");
+    }
+    let dir = scratch("vol-shipped");
+    let volumes = root.join("volumes-small.toml");
+    let smoke = root.join("smoke-small.toml");
+    let (volumes, smoke) = (volumes.to_str().unwrap(), smoke.to_str().unwrap());
+    let sized = ["--size", "16", "--sigma", "0.04"];
+    let mut args = vec!["render", volumes, "--triangle", "2", "-o", "tri.png"];
+    args.extend(sized);
+    otbake_ok(&dir, &args);
+    let img = image::open(dir.join("tri.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (32, 32));
+    let mut args = vec!["slice", smoke, "--weights", "0.5,0.5", "-o", "s.png"];
+    args.extend(sized);
+    otbake_ok(&dir, &args);
+    let img = image::open(dir.join("s.png")).unwrap().to_luma8();
+    assert!(
+        img.pixels().any(|p| p[0] == 255),
+        "the slice's largest value is white"
+    );
+}
