@@ -7,6 +7,7 @@
 //! uses it for its own images ([`render`]).
 pub mod archive;
 pub mod bake;
+pub mod bench;
 pub mod brdf;
 pub mod error;
 pub mod filestat;
