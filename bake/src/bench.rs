@@ -793,13 +793,30 @@ pub fn chart_png(rows: &[Row]) -> Result<Vec<u8>, BenchError> {
         let (grid, legend) = root.split_vertically(h - LEGEND_HEIGHT);
         let panels = grid.split_evenly((panel_rows, cols));
         for (case, area) in cases.iter().zip(panels.iter()) {
-            let pts: Vec<(&Row, f64, f64)> = rows
+            let measured: Vec<(&Row, f64, f64)> = rows
                 .iter()
                 .filter(|r| r.case == *case)
                 .filter_map(|r| {
                     let y = r.uvp()?;
-                    (r.seconds > 0.0 && y > 0.0 && y.is_finite()).then_some((r, r.seconds, y))
+                    (r.seconds > 0.0 && y >= 0.0 && y.is_finite()).then_some((r, r.seconds, y))
                 })
+                .collect();
+            // A log axis has no 0: runs that reproduce the reference exactly sit on a floor below
+            // the smallest positive value, and the caption says so.
+            let min_positive = measured
+                .iter()
+                .map(|p| p.2)
+                .filter(|&y| y > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            let floor = if min_positive.is_finite() {
+                min_positive / 4.0
+            } else {
+                1e-3
+            };
+            let has_zero = measured.iter().any(|p| p.2 == 0.0);
+            let pts: Vec<(&Row, f64, f64)> = measured
+                .into_iter()
+                .map(|(r, x, y)| (r, x, if y > 0.0 { y } else { floor }))
                 .collect();
             let reference = if rows
                 .iter()
@@ -813,7 +830,10 @@ pub fn chart_png(rows: &[Row]) -> Result<Vec<u8>, BenchError> {
             let (y0, y1) = log_range(pts.iter().map(|p| p.2));
             let mut chart = ChartBuilder::on(area)
                 .caption(
-                    format!("{case}: L2-UVP vs {reference}"),
+                    format!(
+                        "{case}: L2-UVP vs {reference}{}",
+                        if has_zero { " (bottom: 0)" } else { "" }
+                    ),
                     (FONT_FAMILY, 17).into_font(),
                 )
                 .margin(8)
@@ -1127,6 +1147,36 @@ mod tests {
             vec![1000, 5000, 50_000, 250_000]
         );
         assert_eq!(sizes(&options, &Case::Blobs), vec![1000, 5000]);
+    }
+
+    #[test]
+    fn a_failing_solver_is_a_row_not_an_abort() {
+        let n = QUICK_N;
+        let inst = instance(&Case::Blobs, n).unwrap();
+        let bad = Config {
+            kind: SolverKind::Sinkhorn,
+            settings: SolverSettings::Sinkhorn(SinkhornSettings {
+                scaling: 2.0,
+                ..SinkhornSettings::default()
+            }),
+            label: "scaling=2".into(),
+        };
+        let dirs = fixed_directions(2, 4);
+        let (row, mapped) = measure(&Case::Blobs, &inst, n, &bad, None, &dirs);
+        assert!(mapped.is_none());
+        assert!(!row.converged);
+        assert_eq!(row.cost, None);
+        let msg = row.error.unwrap();
+        assert!(msg.contains("scaling"), "{msg}");
+        // A run that works, measured against an exact reference: the metrics are filled in.
+        let exact = configs(SolverKind::Exact, n, true).remove(0);
+        let (erow, emapped) = measure(&Case::Blobs, &inst, n, &exact, None, &dirs);
+        let reference = (erow.cost.unwrap(), emapped.unwrap());
+        let sliced = configs(SolverKind::Sliced, n, true).remove(1);
+        let (row, _) = measure(&Case::Blobs, &inst, n, &sliced, Some(&reference), &dirs);
+        assert!(row.converged && row.error.is_none(), "{row:?}");
+        assert!(row.cost_ratio.unwrap() > 0.5 && row.uvp_exact.unwrap() > 0.0);
+        assert!(row.distance.unwrap() > 0.0 && row.uvp_closed_form.is_none());
     }
 
     #[test]
