@@ -169,10 +169,17 @@ fn bench_filters_cases_and_solvers_and_rejects_unknown_cases() {
         .flat_map(|(c, n)| std::iter::repeat_n((c, "sliced".to_string(), n.to_string()), 2))
         .collect();
     assert_eq!(keys, want);
-    assert!(
-        rows.iter().all(|r| !r[6].is_empty()),
-        "cost ratio missing: {csv}"
-    );
+    // A converged run is measured against the reference; one that is not (sliced at 50 iterations
+    // may miss its tolerance on so few points) keeps its cost and says why in the error column.
+    for r in &rows {
+        match r[12].as_str() {
+            "true" => assert!(!r[6].is_empty() && r[13].is_empty(), "{csv}"),
+            _ => assert!(
+                !r[5].is_empty() && r[13].contains("did not converge"),
+                "{csv}"
+            ),
+        }
+    }
 
     let out = otbake(
         &dir,
