@@ -466,7 +466,11 @@ fn measure(
         target: &inst.target,
     };
     let start = Instant::now();
-    let result = solve(&problem, &config.settings);
+    // A panicking solver is a bug to report, not a reason to lose the rest of the sweep: it
+    // becomes an error row (the panic message is also printed by the default hook).
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        solve(&problem, &config.settings)
+    }));
     let seconds = start.elapsed().as_secs_f64();
     let mut row = Row {
         case: case.name().to_string(),
@@ -485,8 +489,17 @@ fn measure(
         error: None,
     };
     let solution = match result {
-        Ok(s) => s,
-        Err(e) => {
+        Ok(Ok(s)) => s,
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic payload".into());
+            row.error = Some(format!("solver panicked: {msg}"));
+            return (row, None);
+        }
+        Ok(Err(e)) => {
             if let SolveError::NotConverged { report, .. } = &e {
                 row.cost = Some(report.cost);
                 row.iterations = Some(report.iterations);
