@@ -81,7 +81,7 @@ fn points<T>(which: &'static str, dim: usize, data: &[T]) -> Result<usize, Metri
     if dim == 0 {
         return Err(MetricError::ZeroDim);
     }
-    if data.len() % dim != 0 {
+    if !data.len().is_multiple_of(dim) {
         return Err(MetricError::NotMultiple {
             which,
             len: data.len(),
@@ -229,7 +229,9 @@ impl GaussianMap {
         for (which, w) in [("source", &ws), ("target", &wt)] {
             let min = w.iter().copied().fold(f64::INFINITY, f64::min);
             let max = w.iter().copied().fold(0.0, f64::max);
-            if !(min > 1e-14 * max.max(f64::MIN_POSITIVE)) {
+            // Also catches NaN eigenvalues (the comparison is false).
+            let positive = min > 1e-14 * max.max(f64::MIN_POSITIVE);
+            if !positive {
                 return Err(MetricError::NotPositiveDefinite {
                     which,
                     min_eigenvalue: min,
