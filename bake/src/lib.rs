@@ -8,6 +8,7 @@
 //! [`volume`].
 pub mod archive;
 pub mod bake;
+pub mod bench;
 pub mod brdf;
 pub mod error;
 pub mod filestat;

@@ -328,6 +328,30 @@ enum Command {
         /// Archive file (.otb).
         archive: PathBuf,
     },
+    /// Benchmark the solvers (speed against accuracy) on standard cases: Gaussian → Gaussian
+    /// (closed form), Gaussian → each shape, uniform → three blobs. Writes bench.csv, bench.png
+    /// (time against L2-UVP) and summary.md into --out.
+    Bench {
+        /// Small n and a reduced sweep (seconds; for CI and tests).
+        #[arg(long)]
+        quick: bool,
+        /// Sizes for every case, e.g. 1000,5000 (default: 1000,5000, plus 50000,250000 for
+        /// gaussian; exact runs only up to 10000).
+        #[arg(long, value_delimiter = ',')]
+        n: Option<Vec<usize>>,
+        /// Cases: gaussian, blobs, shapes (all shapes) or shape names, e.g. gaussian,duck.
+        #[arg(long, value_delimiter = ',')]
+        cases: Option<Vec<String>>,
+        /// Solvers, e.g. exact,sinkhorn (default: all).
+        #[arg(long, value_delimiter = ',', value_enum)]
+        solvers: Option<Vec<otbake::bench::SolverKind>>,
+        /// Directory of the shape PNGs.
+        #[arg(long, default_value = "../shared/data/shapes")]
+        shapes: PathBuf,
+        /// Output directory.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+    },
 }
 
 fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
@@ -724,6 +748,35 @@ fn run(cli: Cli) -> Result<()> {
             print!("{}", otbake::inspect::describe(&bytes));
             otbake::inspect::validate(&bytes)
                 .with_context(|| format!("{} is not a valid archive", archive.display()))?;
+        }
+        Command::Bench {
+            quick,
+            n,
+            cases,
+            solvers,
+            shapes,
+            out,
+        } => {
+            let options = otbake::bench::BenchOptions {
+                quick,
+                ns: n,
+                cases,
+                solvers,
+                shapes_dir: shapes,
+                out,
+            };
+            let mut progress = otbake::bench::TerminalProgress::new();
+            let result = otbake::bench::run(&options, &mut |e| progress.event(e));
+            progress.finish();
+            let report = result?;
+            let failed = report.rows.iter().filter(|r| !r.converged).count();
+            eprintln!(
+                "{} runs ({failed} not converged or failed): {}, {}, {}",
+                report.rows.len(),
+                report.csv.display(),
+                report.chart.display(),
+                report.summary.display()
+            );
         }
     }
     Ok(())

@@ -21,6 +21,7 @@
 mod auction;
 mod cost;
 mod exact;
+pub mod metrics;
 mod rng;
 mod sinkhorn;
 mod sliced;
