@@ -43,7 +43,9 @@ fn main() {
         let t = Instant::now();
         let ex = solve(
             &problem,
-            &SolverSettings::Exact(ExactSettings { max_n: n.max(10_000) }),
+            &SolverSettings::Exact(ExactSettings {
+                max_n: n.max(10_000),
+            }),
         )
         .expect("exact");
         println!(
