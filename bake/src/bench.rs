@@ -723,12 +723,26 @@ pub fn to_markdown(rows: &[Row]) -> String {
         "| case | solver | settings | n | seconds | cost / exact | L2-UVP vs exact (%) | L2-UVP vs closed form (%) | SW2 pushed vs target | converged |\n\
          |---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
     );
-    let f =
-        |v: Option<f64>, digits: usize| v.map_or("—".to_string(), |v| format!("{v:.digits$}"));
+    let ratio = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.5}"));
+    // Percentages: three decimals, or two significant digits below 0.01 (Sinkhorn's matchings are
+    // often within 1e-4 % of the exact one, which three decimals would show as 0).
+    let pct = |v: Option<f64>| match v {
+        None => "—".to_string(),
+        Some(v) if v == 0.0 => "0".to_string(),
+        Some(v) if v < 0.01 => format!("{v:.1e}"),
+        Some(v) => format!("{v:.3}"),
+    };
     for r in rows {
         let converged = match (&r.error, r.converged) {
             (None, true) => "yes".to_string(),
-            (Some(e), _) => format!("no: {}", e.replace('|', "/")),
+            (Some(e), _) => {
+                // The CSV has the whole message; the table keeps its start.
+                let e = e.replace('|', "/");
+                match e.char_indices().nth(100) {
+                    Some((cut, _)) => format!("no: {}…", &e[..cut]),
+                    None => format!("no: {e}"),
+                }
+            }
             (None, false) => "no".to_string(),
         };
         out.push_str(&format!(
@@ -738,10 +752,14 @@ pub fn to_markdown(rows: &[Row]) -> String {
             r.settings,
             r.n,
             r.seconds,
-            f(r.cost_ratio, 4),
-            f(r.uvp_exact, 3),
-            f(r.uvp_closed_form, 3),
-            r.distance.map_or("—".into(), |v| format!("{v:.2e}")),
+            ratio(r.cost_ratio),
+            pct(r.uvp_exact),
+            pct(r.uvp_closed_form),
+            match r.distance {
+                None => "—".into(),
+                Some(v) if v == 0.0 => "0".into(),
+                Some(v) => format!("{v:.2e}"),
+            },
             converged
         ));
     }
