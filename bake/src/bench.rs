@@ -39,8 +39,8 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Largest n the exact reference runs at (its `max_n` in the benchmark): about 10 s in release on
-/// the 2-core build machine, above the solver's default limit.
+/// Largest n the exact reference runs at (its `max_n` in the benchmark, above the solver's default
+/// 6000): its time grows like n²–n³ (1.4–1.9 s at n = 5000 in the default run, BENCHMARKS.md).
 pub const EXACT_MAX_N: usize = 10_000;
 
 /// Mean of the `gaussian` case's target.
@@ -60,8 +60,9 @@ pub const DEFAULT_SMALL_N: [usize; 2] = [1_000, 5_000];
 /// Extra sizes of the default sweep for the `gaussian` case only (closed-form reference).
 pub const DEFAULT_LARGE_N: [usize; 2] = [50_000, 250_000];
 /// Largest n at which Sinkhorn runs its whole settings sweep (blur_spacing ∈ {0.5, 1, 2} ×
-/// tolerance ∈ {1e-2, 1e-3}); above, it runs at its default settings only, which keeps the default
-/// benchmark within about 20 minutes on the 2-core build machine.
+/// tolerance ∈ {1e-2, 1e-3}); above, it runs at its default settings only. Measured: one run at
+/// 250K took 228 s and the whole default benchmark 7.5 min on the (loaded) 2-core build machine;
+/// the full sweep at 250K would add about half an hour.
 pub const SINKHORN_FULL_SWEEP_MAX_N: usize = 50_000;
 /// Size of the `--quick` sweep.
 pub const QUICK_N: usize = 400;
