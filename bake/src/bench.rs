@@ -39,8 +39,8 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Largest n the exact reference runs at (its `max_n` in the benchmark): about 10 s in release on
-/// the 2-core build machine, above the solver's default limit.
+/// Largest n the exact reference runs at (its `max_n` in the benchmark, above the solver's default
+/// 6000): its time grows like n²–n³ (1.4–1.9 s at n = 5000 in the default run, BENCHMARKS.md).
 pub const EXACT_MAX_N: usize = 10_000;
 
 /// Mean of the `gaussian` case's target.
@@ -60,8 +60,9 @@ pub const DEFAULT_SMALL_N: [usize; 2] = [1_000, 5_000];
 /// Extra sizes of the default sweep for the `gaussian` case only (closed-form reference).
 pub const DEFAULT_LARGE_N: [usize; 2] = [50_000, 250_000];
 /// Largest n at which Sinkhorn runs its whole settings sweep (blur_spacing ∈ {0.5, 1, 2} ×
-/// tolerance ∈ {1e-2, 1e-3}); above, it runs at its default settings only, which keeps the default
-/// benchmark within about 20 minutes on the 2-core build machine.
+/// tolerance ∈ {1e-2, 1e-3}); above, it runs at its default settings only. Measured: one run at
+/// 250K took 228 s and the whole default benchmark 7.5 min on the (loaded) 2-core build machine;
+/// the full sweep at 250K would add about half an hour.
 pub const SINKHORN_FULL_SWEEP_MAX_N: usize = 50_000;
 /// Size of the `--quick` sweep.
 pub const QUICK_N: usize = 400;
@@ -723,12 +724,26 @@ pub fn to_markdown(rows: &[Row]) -> String {
         "| case | solver | settings | n | seconds | cost / exact | L2-UVP vs exact (%) | L2-UVP vs closed form (%) | SW2 pushed vs target | converged |\n\
          |---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
     );
-    let f =
-        |v: Option<f64>, digits: usize| v.map_or("—".to_string(), |v| format!("{v:.digits$}"));
+    let ratio = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.5}"));
+    // Percentages: three decimals, or two significant digits below 0.01 (Sinkhorn's matchings are
+    // often within 1e-4 % of the exact one, which three decimals would show as 0).
+    let pct = |v: Option<f64>| match v {
+        None => "—".to_string(),
+        Some(v) if v == 0.0 => "0".to_string(),
+        Some(v) if v < 0.01 => format!("{v:.1e}"),
+        Some(v) => format!("{v:.3}"),
+    };
     for r in rows {
         let converged = match (&r.error, r.converged) {
             (None, true) => "yes".to_string(),
-            (Some(e), _) => format!("no: {}", e.replace('|', "/")),
+            (Some(e), _) => {
+                // The CSV has the whole message; the table keeps its start.
+                let e = e.replace('|', "/");
+                match e.char_indices().nth(100) {
+                    Some((cut, _)) => format!("no: {}…", &e[..cut]),
+                    None => format!("no: {e}"),
+                }
+            }
             (None, false) => "no".to_string(),
         };
         out.push_str(&format!(
@@ -738,10 +753,14 @@ pub fn to_markdown(rows: &[Row]) -> String {
             r.settings,
             r.n,
             r.seconds,
-            f(r.cost_ratio, 4),
-            f(r.uvp_exact, 3),
-            f(r.uvp_closed_form, 3),
-            r.distance.map_or("—".into(), |v| format!("{v:.2e}")),
+            ratio(r.cost_ratio),
+            pct(r.uvp_exact),
+            pct(r.uvp_closed_form),
+            match r.distance {
+                None => "—".into(),
+                Some(v) if v == 0.0 => "0".into(),
+                Some(v) => format!("{v:.2e}"),
+            },
             converged
         ));
     }
