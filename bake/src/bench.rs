@@ -729,7 +729,7 @@ pub fn to_markdown(rows: &[Row]) -> String {
     // often within 1e-4 % of the exact one, which three decimals would show as 0).
     let pct = |v: Option<f64>| match v {
         None => "—".to_string(),
-        Some(v) if v == 0.0 => "0".to_string(),
+        Some(0.0) => "0".to_string(),
         Some(v) if v < 0.01 => format!("{v:.1e}"),
         Some(v) => format!("{v:.3}"),
     };
@@ -758,7 +758,7 @@ pub fn to_markdown(rows: &[Row]) -> String {
             pct(r.uvp_closed_form),
             match r.distance {
                 None => "—".into(),
-                Some(v) if v == 0.0 => "0".into(),
+                Some(0.0) => "0".into(),
                 Some(v) => format!("{v:.2e}"),
             },
             converged
