@@ -15,7 +15,7 @@ use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
 use otbake::render::Archives;
 use otbake::volume::render::{render_triangle, RenderSettings, DEFAULT_SIGMA};
-use otbake_runtime::{Blend, Kernel, PreparedBuffers};
+use otbake_runtime::{Blend, Kernel};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
@@ -57,18 +57,12 @@ fn main() -> anyhow::Result<()> {
 
     let sizes = blend.prepared_sizes();
     let mut store = vec![0f32; sizes.total()];
-    let (positions, rest) = store.split_at_mut(sizes.positions);
-    let (colors, rest) = rest.split_at_mut(sizes.colors);
-    let (node_boxes, node_colors) = rest.split_at_mut(sizes.node_boxes);
     let t = Instant::now();
     let prep = blend.prepare(
         &w,
-        PreparedBuffers {
-            positions,
-            colors,
-            node_boxes,
-            node_colors,
-        },
+        sizes
+            .split(&mut store)
+            .expect("sized by PreparedSizes::total"),
     )?;
     let prepare = t.elapsed().as_secs_f64();
 
@@ -100,17 +94,11 @@ fn main() -> anyhow::Result<()> {
         // The map's points: the blend with weight 1 on this input.
         let mut e = vec![0.0; k];
         e[i] = 1.0;
-        let (positions, rest) = single.split_at_mut(sizes.positions);
-        let (colors, rest) = rest.split_at_mut(sizes.colors);
-        let (node_boxes, node_colors) = rest.split_at_mut(sizes.node_boxes);
         let one = blend.prepare(
             &e,
-            PreparedBuffers {
-                positions,
-                colors,
-                node_boxes,
-                node_colors,
-            },
+            sizes
+                .split(&mut single)
+                .expect("sized by PreparedSizes::total"),
         )?;
         let outside = one
             .positions()

@@ -7,7 +7,7 @@ use crate::fsio::{read_aligned, IoError};
 use crate::imageio::Rgba;
 use crate::manifest::Manifest;
 use otbake_formats::Composite;
-use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, MAX_DIM};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, Proxy, Region, MAX_DIM};
 use rayon::prelude::*;
 use rkyv::util::AlignedVec;
 
@@ -153,18 +153,12 @@ pub fn render<'a>(
     let sizes = blend.prepared_sizes();
     let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
     store.resize(sizes.total(), 0.0);
-    let (positions, rest) = store.split_at_mut(sizes.positions);
-    let (colors, rest) = rest.split_at_mut(sizes.colors);
-    let (node_boxes, node_colors) = rest.split_at_mut(sizes.node_boxes);
     let prep = blend
         .prepare(
             weights,
-            PreparedBuffers {
-                positions,
-                colors,
-                node_boxes,
-                node_colors,
-            },
+            sizes
+                .split(&mut store)
+                .expect("sized by PreparedSizes::total"),
         )
         .map_err(runtime("--weights"))?;
     let mut res = [1u32; MAX_DIM];

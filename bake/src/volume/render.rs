@@ -36,7 +36,7 @@
 use super::vol::VolFile;
 use crate::imageio::Rgba;
 use crate::render::{grid_cells, Archives, RenderError};
-use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, Proxy, Region};
 use rayon::prelude::*;
 
 /// Default kernel standard deviation in unit-cube units: about 1.3 cells of a 128³ grid, and a few
@@ -86,18 +86,12 @@ fn with_prepared<R>(
 ) -> Result<R, VolumeRenderError> {
     let sizes = blend.prepared_sizes();
     let mut store = vec![0f32; sizes.total()];
-    let (positions, rest) = store.split_at_mut(sizes.positions);
-    let (colors, rest) = rest.split_at_mut(sizes.colors);
-    let (node_boxes, node_colors) = rest.split_at_mut(sizes.node_boxes);
     let prep = blend
         .prepare(
             weights,
-            PreparedBuffers {
-                positions,
-                colors,
-                node_boxes,
-                node_colors,
-            },
+            sizes
+                .split(&mut store)
+                .expect("sized by PreparedSizes::total"),
         )
         .map_err(runtime("--weights"))?;
     f(&prep)
