@@ -18,7 +18,8 @@
 //! kind = "sinkhorn"             # sinkhorn | exact | sliced
 //! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
 //! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
-//! # blur_spacing = 1.0, scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0
+//! # blur_spacing = 1.0, scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0,
+//! # auction_eps = 0.25
 //! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0
 //!
 //! [[input]]
@@ -436,7 +437,7 @@ impl Manifest {
         // Every key belongs to some solver kinds; a key of another kind is an error, not ignored.
         let span = |v: Option<Range<usize>>| v;
         type KeyUse<'k> = (Option<Range<usize>>, &'k str, &'k [SolverKind]);
-        let keys: [KeyUse; 11] = [
+        let keys: [KeyUse; 12] = [
             (
                 span(s.iterations.as_ref().map(|v| v.span())),
                 "iterations",
@@ -490,6 +491,11 @@ impl Manifest {
             (
                 span(s.map.as_ref().map(|v| v.span())),
                 "map",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.auction_eps.as_ref().map(|v| v.span())),
+                "auction_eps",
                 &[SolverKind::Sinkhorn],
             ),
         ];
@@ -588,6 +594,14 @@ impl Manifest {
                     "at least 1 (default 8)",
                 )? {
                     sk.truncate = v;
+                }
+                if let Some(v) = real(
+                    &s.auction_eps,
+                    "auction_eps",
+                    &|v| v > 0.0 && v <= 1.0,
+                    "in (0, 1] (the auction's final epsilon as a fraction of Sinkhorn's)",
+                )? {
+                    sk.auction_eps = v;
                 }
                 if let Some(it) = &s.max_iterations {
                     if *it.get_ref() == 0 {
@@ -826,6 +840,7 @@ struct RawSolver {
     max_iterations: Option<Spanned<u32>>,
     truncate: Option<Spanned<f64>>,
     map: Option<Spanned<RawMapKind>>,
+    auction_eps: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]

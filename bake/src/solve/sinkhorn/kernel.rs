@@ -210,10 +210,15 @@ fn search<const D: usize>(
     margin: f64,
     stack: &mut Vec<(u32, u32, f64)>,
     out: &mut Vec<(u32, f64)>,
+    hint: Option<u32>,
 ) -> f64 {
     let start = out.len();
     let x2: f64 = x.iter().map(|v| v * v).sum();
-    let mut best = f64::INFINITY;
+    // An upper bound of the minimum from a likely candidate (the previous row's best: rows are in
+    // Morton order, so neighbours share candidates) lets the search prune from the root.
+    let mut best = hint.map_or(f64::INFINITY, |j| {
+        sq(x, &h.levels[level].pos[j as usize]) - pot[j as usize]
+    });
     stack.clear();
     stack.push((0, 0, f64::NEG_INFINITY));
     let mut kids: [(f64, u32); 16] = [(0.0, 0); 16];
@@ -303,6 +308,7 @@ fn search_all<const D: usize>(
             let mut lens = Vec::with_capacity(b - a);
             let mut idx = Vec::new();
             let mut mins = Vec::with_capacity(b - a);
+            let mut hint = None;
             for i in a..b {
                 found.clear();
                 let best = search(
@@ -314,7 +320,12 @@ fn search_all<const D: usize>(
                     margin,
                     &mut stack,
                     &mut found,
+                    hint,
                 );
+                hint = found
+                    .iter()
+                    .min_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)))
+                    .map(|e| e.0);
                 found.sort_unstable_by_key(|e| e.0);
                 lens.push(found.len() as u32);
                 idx.extend(found.iter().map(|e| e.0));
