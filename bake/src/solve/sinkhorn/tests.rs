@@ -180,7 +180,7 @@ fn blur_far_below_the_spacing() {
         target: &target,
     };
     let s = SinkhornSettings {
-        blur_spacing: 1e-3,
+        blur_spacing: Some(1e-3),
         max_iterations: 300,
         ..Default::default()
     };
