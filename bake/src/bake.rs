@@ -539,6 +539,7 @@ fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, Bak
         key,
         dim,
         leaf_size: m.proxy.leaf_size,
+        wrap: otbake_formats::Wrap::Clamp,
         positions: crate::tree::permute(&points, dim, &order),
         description: describe_proxy(m),
     })
@@ -590,6 +591,7 @@ fn build_map(
         leaf_size: proxy.leaf_size,
         composite: composite_of(spec.density),
         mean_mass: grid.mean_mass() as f32,
+        wrap: proxy.wrap,
         positions,
         colors,
         solver_report,
