@@ -36,9 +36,10 @@ mod hierarchy;
 mod kernel;
 
 use super::auction::{auction, Graph};
-use super::{Problem, Report, Solution, SolveError};
+use super::cost::{delta, sq};
+use super::{Problem, Report, Solution, SolveError, Wrap};
 use hierarchy::{Grid, Hierarchy};
-use kernel::{sq, Kernel};
+use kernel::Kernel;
 use rayon::prelude::*;
 
 pub(super) const NAME: &str = "sinkhorn";
@@ -160,10 +161,13 @@ impl SinkhornSettings {
 /// the point spacing or many points coincide, and memory would no longer be linear in n.
 const MAX_PAIRS_PER_POINT: usize = 4096;
 
+/// Solves in the metric of `wrap` (on the torus: costs, kernel bounds and the barycentric map see the
+/// nearest images, and the mapped points are lifts; see [`super::solve_in`]).
 pub(super) fn solve(
     problem: &Problem<'_>,
     n: usize,
     settings: &SinkhornSettings,
+    wrap: Wrap,
 ) -> Result<Solution, SolveError> {
     settings.check()?;
     if n >= u32::MAX as usize {
@@ -175,10 +179,10 @@ pub(super) fn solve(
         });
     }
     match problem.dim {
-        1 => run::<1>(problem, n, settings),
-        2 => run::<2>(problem, n, settings),
-        3 => run::<3>(problem, n, settings),
-        4 => run::<4>(problem, n, settings),
+        1 => run::<1>(problem, n, settings, wrap),
+        2 => run::<2>(problem, n, settings, wrap),
+        3 => run::<3>(problem, n, settings, wrap),
+        4 => run::<4>(problem, n, settings, wrap),
         d => Err(SolveError::InvalidSettings {
             solver: NAME,
             field: "dim",
@@ -210,6 +214,7 @@ fn run<const D: usize>(
     problem: &Problem<'_>,
     n: usize,
     settings: &SinkhornSettings,
+    wrap: Wrap,
 ) -> Result<Solution, SolveError> {
     let pts = |data: &[f32]| -> Vec<[f64; D]> {
         data.par_chunks_exact(D)
@@ -275,12 +280,12 @@ fn run<const D: usize>(
                     g_old
                 } else {
                     let f_old = absorbed(&st.kernel.f, &st.u, &hs.levels[st.level].mass, st.eps);
-                    extrapolate(&hs, &ht, st.level, level, &st.kernel, &f_old, eps)
+                    extrapolate(&hs, &ht, st.level, level, &st.kernel, &f_old, eps, wrap)
                 }
             }
         };
         let tk = std::time::Instant::now();
-        let kernel = kernel::build(&hs, &ht, level, &g, eps, settings.truncate);
+        let kernel = kernel::build(&hs, &ht, level, &g, eps, settings.truncate, wrap);
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("  kernel build {:.2}s", tk.elapsed().as_secs_f64());
         }
@@ -297,7 +302,7 @@ fn run<const D: usize>(
         };
         let t0 = std::time::Instant::now();
         let last = stage + 1 == blurs.len();
-        let log = iterate(&hs, &ht, &mut st, settings, &mut rebuilds)?;
+        let log = iterate(&hs, &ht, &mut st, settings, &mut rebuilds, wrap)?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("stage {stage} blur {blur:.3e} level {level} cells {}x{} pairs {} its {} err {:.2e} {:.2}s", hs.levels[level].len(), ht.levels[level].len(), st.kernel.pairs(), log.iterations, log.error, t0.elapsed().as_secs_f64());
         }
@@ -330,11 +335,11 @@ fn run<const D: usize>(
     // The map.
     let dim = D;
     let (mapped_sorted, refine) = match settings.map {
-        MapKind::Barycentric => (barycentric(&st, &ht), None),
+        MapKind::Barycentric => (barycentric(&st, &hs, &ht, wrap), None),
         MapKind::Assignment => {
             let g = absorbed(&st.g, &st.v, &ht.levels[point_level].mass, st.eps);
             let ta = std::time::Instant::now();
-            let r = refine_assignment(&hs, &ht, &st, g, side);
+            let r = refine_assignment(&hs, &ht, &st, g, side, wrap);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!("  auction {:.2}s", ta.elapsed().as_secs_f64());
             }
@@ -343,7 +348,7 @@ fn run<const D: usize>(
                     let y = &ht.levels[point_level].pos;
                     (x.iter().map(|&j| y[j as usize]).collect(), Some(info))
                 }
-                Err(info) => (barycentric(&st, &ht), Some(info)),
+                Err(info) => (barycentric(&st, &hs, &ht, wrap), Some(info)),
             }
         }
     };
@@ -354,6 +359,9 @@ fn run<const D: usize>(
         for a in 0..dim {
             mapped[o * dim + a] = mapped_sorted[k][a] as f32;
         }
+    }
+    if wrap == Wrap::Periodic {
+        super::cost::lift(dim, problem.source, &mut mapped);
     }
     super::check_finite("mapped", dim, &mapped)?;
     let assignment = match &refine {
@@ -392,6 +400,7 @@ fn absorbed(p: &[f64], s: &[f64], mass: &[f64], eps: f64) -> Vec<f64> {
 /// Target potential on level `to` from the source potential `f` on level `from`: the soft
 /// c-transform g(y) = −ε log Σ_I a_I exp((f_I − C(x_I, y))/ε) over the source cells the coarse
 /// kernel links to y's ancestor.
+#[allow(clippy::too_many_arguments)]
 fn extrapolate<const D: usize>(
     hs: &Hierarchy<D>,
     ht: &Hierarchy<D>,
@@ -400,6 +409,7 @@ fn extrapolate<const D: usize>(
     kernel: &Kernel,
     f: &[f64],
     eps: f64,
+    wrap: Wrap,
 ) -> Vec<f64> {
     let ys = &ht.levels[to];
     let (xs, a) = (&hs.levels[from].pos, &hs.levels[from].mass);
@@ -415,12 +425,12 @@ fn extrapolate<const D: usize>(
             let mut m = f64::NEG_INFINITY;
             for &i in rows {
                 let i = i as usize;
-                m = m.max(f[i] - sq(&xs[i], y) + eps * a[i].ln());
+                m = m.max(f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln());
             }
             let mut s = 0.0;
             for &i in rows {
                 let i = i as usize;
-                s += ((f[i] - sq(&xs[i], y) + eps * a[i].ln() - m) / eps).exp();
+                s += ((f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln() - m) / eps).exp();
             }
             -(m + eps * s.ln())
         })
@@ -456,6 +466,7 @@ fn iterate<const D: usize>(
     st: &mut State,
     settings: &SinkhornSettings,
     rebuilds: &mut u32,
+    wrap: Wrap,
 ) -> Result<StageLog, SolveError> {
     let (a, b) = (
         hs.levels[st.level].mass.clone(),
@@ -553,7 +564,7 @@ fn iterate<const D: usize>(
             // Absorb and rebuild the kernel around the new potentials.
             let g = absorbed(&st.g, &st.v, &b, st.eps);
             let tk = std::time::Instant::now();
-            st.kernel = kernel::build(hs, ht, st.level, &g, st.eps, settings.truncate);
+            st.kernel = kernel::build(hs, ht, st.level, &g, st.eps, settings.truncate, wrap);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!("  rebuild at it {it} {:.2}s", tk.elapsed().as_secs_f64());
             }
@@ -571,10 +582,36 @@ fn iterate<const D: usize>(
     })
 }
 
-/// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level.
-fn barycentric<const D: usize>(st: &State, ht: &Hierarchy<D>) -> Vec<[f64; D]> {
+/// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level; on the torus
+/// x_i + Σ_j K_ij v_j δ(x_i, y_j) / Σ_j K_ij v_j, the mean of the shortest displacements (the plan of
+/// a row is concentrated within a few blurs of x_i, far less than half a period).
+fn barycentric<const D: usize>(
+    st: &State,
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    wrap: Wrap,
+) -> Vec<[f64; D]> {
     let y = &ht.levels[st.level].pos;
     let kern = &st.kernel;
+    if wrap == Wrap::Periodic {
+        let x = &hs.levels[st.level].pos;
+        return (0..kern.row_ptr.len() - 1)
+            .into_par_iter()
+            .map(|i| {
+                let mut acc = [0.0; D];
+                let mut w = 0.0;
+                for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
+                    let j = kern.col[p] as usize;
+                    let kv = f64::from(kern.k[p]) * st.v[j];
+                    w += kv;
+                    for a in 0..D {
+                        acc[a] += kv * delta(wrap, x[i][a], y[j][a]);
+                    }
+                }
+                std::array::from_fn(|a| x[i][a] + acc[a] / w)
+            })
+            .collect();
+    }
     (0..kern.row_ptr.len() - 1)
         .into_par_iter()
         .map(|i| {
@@ -628,16 +665,17 @@ fn refine_assignment<const D: usize>(
     st: &State,
     mut v: Vec<f64>,
     side: f64,
+    wrap: Wrap,
 ) -> Result<(Vec<u32>, RefineInfo), RefineInfo> {
     let (x, y) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
     let graph = Graph {
         row_ptr: &st.kernel.row_ptr,
         col: &st.kernel.col,
         cols: y.len(),
-        cost: |i: usize, j: usize| sq(&x[i], &y[j]),
+        cost: |i: usize, j: usize| sq(wrap, &x[i], &y[j]),
     };
     let n_cols = y.len();
-    let cost = |i: usize, j: usize| sq(&x[i], &y[j]);
+    let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]);
     let m = auction(
         &graph,
         &mut v,
@@ -741,3 +779,5 @@ fn finish_identity(problem: &Problem<'_>, n: usize) -> Solution {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod torus_tests;
