@@ -1075,4 +1075,84 @@ density = "inverted"
         assert_eq!(e.line, 13, "{e}");
         assert!(e.message.contains("crop"), "{e}");
     }
+
+    const TEXTURES: &str = r#"
+[output]
+dir = "out"
+[proxy]
+kind = "uniform"
+samples = 1000
+[solver]
+kind = "sliced"
+[[input]]
+name = "onyx"
+path = "../textures/marble_onyx003_ambientcg_1k.jpg"
+wrap = "periodic"
+[[input]]
+name = "slate"
+path = "../textures/marble_slate_texturecan240_gray.png"
+wrap = "periodic"
+"#;
+
+    #[test]
+    fn wrap_defaults_to_clamp_and_periodic_is_per_input() {
+        let m = manifest(GOOD).unwrap();
+        assert_eq!(m.wrap(), Wrap::Clamp);
+        assert_eq!(m.inputs[0].wrap, Wrap::Clamp);
+        let m = manifest(TEXTURES).unwrap();
+        assert_eq!(m.wrap(), Wrap::Periodic);
+        assert!(m.inputs.iter().all(|i| i.wrap == Wrap::Periodic));
+        let m = manifest(
+            &TEXTURES.replace("kind = \"uniform\"", "kind = \"input\"\ninput = \"slate\""),
+        )
+        .unwrap();
+        assert_eq!(m.proxy.source, ProxySource::Input(1));
+        let clamp = TEXTURES.replace("wrap = \"periodic\"", "wrap = \"clamp\"");
+        assert_eq!(manifest(&clamp).unwrap().wrap(), Wrap::Clamp);
+    }
+
+    #[test]
+    fn bad_wraps_are_located_and_say_how_to_fix_them() {
+        // Inputs disagree: the second one's default, then its explicit value.
+        let second = TEXTURES.rfind("wrap = \"periodic\"").unwrap();
+        let mut body = TEXTURES.to_string();
+        body.replace_range(second..second + "wrap = \"periodic\"".len(), "");
+        let e = manifest(&body).unwrap_err();
+        assert_eq!((e.line, e.column), (14, 8), "{e}");
+        assert!(
+            e.message.contains("\"slate\"") && e.message.contains("(the default)"),
+            "{e}"
+        );
+        assert!(e.message.contains("on every input"), "{e}");
+        body.insert_str(second, "wrap = \"clamp\"");
+        let e = manifest(&body).unwrap_err();
+        assert_eq!((e.line, e.column), (16, 8), "{e}");
+        assert!(!e.message.contains("(the default)"), "{e}");
+        // Concentrated proxies cannot serve the torus.
+        for kind in ["gaussian", "spiral"] {
+            let e = manifest(&TEXTURES.replace("\"uniform\"", &format!("\"{kind}\""))).unwrap_err();
+            assert_eq!(e.line, 5, "{e}");
+            assert!(
+                e.message.contains(kind) && e.message.contains("kind = \"uniform\""),
+                "{e}"
+            );
+        }
+        // Only images tile.
+        let vol = GOOD
+            .replace("duck.png", "../volumes/smoke_44x45x53.vol")
+            .replace("density = \"inverted\"", "wrap = \"periodic\"");
+        let e = manifest(&vol).unwrap_err();
+        assert_eq!(e.line, 12, "{e}");
+        assert!(
+            e.message.contains("tileable images") && e.message.contains("remove `wrap`"),
+            "{e}"
+        );
+        // Unknown values name the choices.
+        let e = manifest(&TEXTURES.replacen("\"periodic\"", "\"repeat\"", 1)).unwrap_err();
+        assert_eq!(e.line, 12, "{e}");
+        assert!(
+            e.message.contains("repeat") && e.message.contains("periodic"),
+            "{e}"
+        );
+    }
 }

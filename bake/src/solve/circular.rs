@@ -247,17 +247,33 @@ impl Slice {
             *s = key_value(k);
         }
         let k = circular_match(&self.ps, &self.qs);
-        for (r, &i) in self.idx.iter().enumerate() {
-            self.xp[i as usize] = lifted(&self.qs, r as i64 + k) - self.ps[r];
+        for ((&i, &p), q) in self.idx.iter().zip(&self.ps).zip(lifted_from(&self.qs, k)) {
+            self.xp[i as usize] = q - p;
         }
     }
 }
 
 /// Value `j` of the periodic extension of sorted `q` (`q̃_(j+n) = q̃_j + 1`), for any integer `j`.
-#[inline]
+#[cfg(test)]
 fn lifted(q: &[f64], j: i64) -> f64 {
     let n = q.len() as i64;
     q[j.rem_euclid(n) as usize] + j.div_euclid(n) as f64
+}
+
+/// The lifted values `q̃_(k)`, `q̃_(k+1)`, … of sorted `q` (`q̃_(j+n) = q̃_j + 1`), walking the
+/// index instead of dividing per value.
+fn lifted_from(q: &[f64], k: i64) -> impl Iterator<Item = f64> + '_ {
+    let n = q.len() as i64;
+    let (mut wraps, mut j) = (k.div_euclid(n) as f64, k.rem_euclid(n) as usize);
+    std::iter::repeat_with(move || {
+        let v = q[j] + wraps;
+        j += 1;
+        if j == q.len() {
+            j = 0;
+            wraps += 1.0;
+        }
+        v
+    })
 }
 
 /// `L(k + 1) − L(k)` for the lifted cost `L(k) = Σ_i (q̃_(i+k) − p_i)²`, summed term by term (more
@@ -265,28 +281,52 @@ fn lifted(q: &[f64], j: i64) -> f64 {
 /// q̃_(i+k) − 2 p_i)`.
 fn cost_step(p: &[f64], q: &[f64], k: i64) -> f64 {
     p.iter()
-        .enumerate()
-        .map(|(i, &pi)| {
-            let a = lifted(q, i as i64 + k);
-            let b = lifted(q, i as i64 + k + 1);
-            (b - a) * (b + a - 2.0 * pi)
-        })
+        .zip(lifted_from(q, k).zip(lifted_from(q, k + 1)))
+        .map(|(&pi, (a, b))| (b - a) * (b + a - 2.0 * pi))
         .sum()
 }
 
 /// The optimal cyclic shift `k` between sorted equal-size samples `p` and `q` of the circle `[0, 1)`
-/// under the squared arc length: bisection for the first `k` in `[−n, n)` with `L(k+1) − L(k) >= 0`
-/// (`L` decreases, then increases), then a descent while a neighbor is strictly cheaper, which guards
-/// against rounding in the bisection's tests.
+/// under the squared arc length. `L` decreases, then increases in `k`: the shift is the first `k`
+/// with `L(k+1) − L(k) >= 0`. The search starts at the shift that matches the means
+/// (`Σ_i q̃_(i+k) = Σ q + k`, so `k ≈ Σ p − Σ q`), brackets by doubling steps and bisects, then
+/// descends while a neighbor is strictly cheaper, which guards against rounding in the tests. A few
+/// O(n) evaluations where plain bisection over `[−n, n)` needs `log2(2n)`.
 pub(crate) fn circular_match(p: &[f64], q: &[f64]) -> i64 {
     let n = p.len() as i64;
     if n == 0 {
         return 0;
     }
-    let (mut lo, mut hi) = (-n, n - 1);
+    let rising = |k: i64| cost_step(p, q, k) >= 0.0;
+    let sum = |v: &[f64]| v.iter().sum::<f64>();
+    let guess = ((sum(p) - sum(q)).round() as i64).clamp(-n, n - 1);
+    // Bracket [lo, hi]: not rising at lo − 1 (or lo = −n), rising at hi (or hi = n − 1).
+    let (mut lo, mut hi) = if rising(guess) {
+        let mut step = 1;
+        let mut hi = guess;
+        loop {
+            let lo = (hi - step).max(-n);
+            if lo == -n || !rising(lo) {
+                break (lo, hi);
+            }
+            hi = lo;
+            step *= 2;
+        }
+    } else {
+        let mut step = 1;
+        let mut lo = guess + 1;
+        loop {
+            let hi = (lo + step - 1).min(n - 1);
+            if hi == n - 1 || rising(hi) {
+                break (lo.min(hi), hi);
+            }
+            lo = hi + 1;
+            step *= 2;
+        }
+    };
     while lo < hi {
         let mid = lo + (hi - lo) / 2;
-        if cost_step(p, q, mid) >= 0.0 {
+        if rising(mid) {
             hi = mid;
         } else {
             lo = mid + 1;
@@ -358,9 +398,13 @@ pub(crate) fn circular_sliced_w2(
             };
             let (pa, pb) = (sorted(a), sorted(b));
             let k = circular_match(&pa, &pb);
+            let d: Vec<f64> = pa
+                .iter()
+                .zip(lifted_from(&pb, k))
+                .map(|(p, q)| q - p)
+                .collect();
             let sw = det_sum(n, |i| {
-                let d = lifted(&pb, i as i64 + k) - pa[i];
-                let d = d - (d + 0.5).floor();
+                let d = d[i] - (d[i] + 0.5).floor();
                 d * d
             }) / n as f64;
             let n2 = (theta[0] * theta[0] + theta[1] * theta[1]) as f64;
