@@ -300,3 +300,17 @@ fn wrap_is_keyed_and_bakes_are_thread_count_independent() {
         }
     }
 }
+
+/// The shipped texture manifests are periodic, with a uniform proxy.
+#[test]
+fn shipped_texture_manifests_are_periodic() {
+    for name in ["textures.toml", "terrain.toml"] {
+        let m = Manifest::load(&otbake_tests::repo_root().join("manifests").join(name)).unwrap();
+        assert_eq!(m.wrap(), Wrap::Periodic, "{name}");
+        assert_eq!(
+            m.proxy.source,
+            otbake::manifest::ProxySource::Shape(otbake::proxy::ProxyShape::Uniform),
+            "{name}"
+        );
+    }
+}
