@@ -108,11 +108,15 @@ impl Prepared<'_> {
                 }
             }
         };
-        match self.dim {
-            1 => self.visit::<1>(kp, kernel, &region, Cutoff::Exact, &mut sink),
-            2 => self.visit::<2>(kp, kernel, &region, Cutoff::Exact, &mut sink),
-            3 => self.visit::<3>(kp, kernel, &region, Cutoff::Exact, &mut sink),
-            _ => self.visit::<4>(kp, kernel, &region, Cutoff::Exact, &mut sink),
+        // One traversal per image of a periodic blend (just one otherwise), into the same sums.
+        for shift in crate::periodic::region_shifts(self.wrap, self, &region, kernel)? {
+            let p = Prepared { shift, ..*self };
+            match self.dim {
+                1 => p.visit::<1>(kp, kernel, &region, Cutoff::Exact, &mut sink),
+                2 => p.visit::<2>(kp, kernel, &region, Cutoff::Exact, &mut sink),
+                3 => p.visit::<3>(kp, kernel, &region, Cutoff::Exact, &mut sink),
+                _ => p.visit::<4>(kp, kernel, &region, Cutoff::Exact, &mut sink),
+            }
         }
         // The end of `point::point`, per cell.
         let scale = kp.norm / self.n as f32;
@@ -173,11 +177,14 @@ impl Prepared<'_> {
                 }
             }
         };
-        match self.dim {
-            1 => self.visit::<1>(kp, kernel, &region, Cutoff::Splat, &mut sink),
-            2 => self.visit::<2>(kp, kernel, &region, Cutoff::Splat, &mut sink),
-            3 => self.visit::<3>(kp, kernel, &region, Cutoff::Splat, &mut sink),
-            _ => self.visit::<4>(kp, kernel, &region, Cutoff::Splat, &mut sink),
+        for shift in crate::periodic::region_shifts(self.wrap, self, &region, kernel)? {
+            let p = Prepared { shift, ..*self };
+            match self.dim {
+                1 => p.visit::<1>(kp, kernel, &region, Cutoff::Splat, &mut sink),
+                2 => p.visit::<2>(kp, kernel, &region, Cutoff::Splat, &mut sink),
+                3 => p.visit::<3>(kp, kernel, &region, Cutoff::Splat, &mut sink),
+                _ => p.visit::<4>(kp, kernel, &region, Cutoff::Splat, &mut sink),
+            }
         }
         Ok(())
     }
@@ -249,7 +256,8 @@ impl Prepared<'_> {
             // Distance from the node's box to the box of cell centers, summed like `box_distance2`.
             let mut d2 = 0.0f32;
             for k in 0..D {
-                let gap = (b[k] - chi[k]).max(clo[k] - b[D + k]).max(0.0);
+                let (lo, hi) = (b[k] - self.shift[k], b[D + k] - self.shift[k]);
+                let gap = (lo - chi[k]).max(clo[k] - hi).max(0.0);
                 d2 += gap * gap;
             }
             if d2 > kp.radius2 {
@@ -271,6 +279,8 @@ impl Prepared<'_> {
                 None
             };
             for (j, y) in points.chunks_exact(D).enumerate() {
+                // The point in the image being visited (itself unless periodic).
+                let y: [f32; D] = core::array::from_fn(|k| y[k] - self.shift[k]);
                 let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
                     Some(&[r, g, b]) => [r, g, b],
                     _ => no_color,
@@ -329,7 +339,7 @@ impl Prepared<'_> {
                         &axes, &lo, &hi, &stride, &sq, &off, kp, &c, &mut batch, sink,
                     );
                 } else {
-                    cells::<D>(y, &axes, &lo, &hi, &stride, kp, &c, &mut batch, sink);
+                    cells::<D>(&y, &axes, &lo, &hi, &stride, kp, &c, &mut batch, sink);
                 }
             }
         }

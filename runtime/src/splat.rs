@@ -34,8 +34,15 @@ impl Blend<'_, '_> {
             color,
         } = target;
         check_target(self.dim, &res, density, color.as_deref())?;
-        splat(&self.weighted(weights), kernel, kp, &res, density, color);
-        Ok(())
+        crate::periodic::splat(
+            self.wrap,
+            &self.weighted(weights),
+            kernel,
+            kp,
+            &res,
+            density,
+            color,
+        )
     }
 }
 

@@ -40,9 +40,10 @@ mod hierarchy;
 mod kernel;
 
 use super::auction::{auction, Graph};
-use super::{Problem, Report, Solution, SolveError};
+use super::cost::{delta, sq};
+use super::{Problem, Report, Solution, SolveError, Wrap};
 use hierarchy::{Grid, Hierarchy};
-use kernel::{sq, Kernel};
+use kernel::Kernel;
 use rayon::prelude::*;
 
 pub(super) const NAME: &str = "sinkhorn";
@@ -196,10 +197,13 @@ pub const DEFAULT_BLUR_SPACING: [f64; 4] = [1.5, 1.5, 1.5, 1.0];
 /// final stage at 50K points needs 60 iterations instead of 536 (BENCHMARKS.md).
 const STAGE_TOLERANCE: f64 = 0.1;
 
+/// Solves in the metric of `wrap` (on the torus: costs, kernel bounds and the barycentric map see the
+/// nearest images, and the mapped points are lifts; see [`super::solve_in`]).
 pub(super) fn solve(
     problem: &Problem<'_>,
     n: usize,
     settings: &SinkhornSettings,
+    wrap: Wrap,
 ) -> Result<Solution, SolveError> {
     settings.check()?;
     if n >= u32::MAX as usize {
@@ -211,10 +215,10 @@ pub(super) fn solve(
         });
     }
     match problem.dim {
-        1 => run::<1>(problem, n, settings),
-        2 => run::<2>(problem, n, settings),
-        3 => run::<3>(problem, n, settings),
-        4 => run::<4>(problem, n, settings),
+        1 => run::<1>(problem, n, settings, wrap),
+        2 => run::<2>(problem, n, settings, wrap),
+        3 => run::<3>(problem, n, settings, wrap),
+        4 => run::<4>(problem, n, settings, wrap),
         d => Err(SolveError::InvalidSettings {
             solver: NAME,
             field: "dim",
@@ -246,6 +250,7 @@ fn run<const D: usize>(
     problem: &Problem<'_>,
     n: usize,
     settings: &SinkhornSettings,
+    wrap: Wrap,
 ) -> Result<Solution, SolveError> {
     let pts = |data: &[f32]| -> Vec<[f64; D]> {
         data.par_chunks_exact(D)
@@ -319,18 +324,20 @@ fn run<const D: usize>(
                 let ratio = eps / st.eps;
                 if level == st.level {
                     let (sx, sy) = (&hs.levels[level].pos, &ht.levels[level].pos);
-                    let g_hard = hard_transform(&st.kernel.col_ptr, &st.kernel.row, sy, sx, &f_old);
+                    let g_hard =
+                        hard_transform(&st.kernel.col_ptr, &st.kernel.row, sy, sx, &f_old, wrap);
                     shrink_offset(&g_old, &g_hard, ratio)
                 } else {
                     let (sx, sy) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
-                    let f_hard = hard_transform(&st.kernel.row_ptr, &st.kernel.col, sx, sy, &g_old);
+                    let f_hard =
+                        hard_transform(&st.kernel.row_ptr, &st.kernel.col, sx, sy, &g_old, wrap);
                     let f_pred = shrink_offset(&f_old, &f_hard, ratio);
-                    extrapolate(&hs, &ht, st.level, level, &st.kernel, &f_pred, eps)
+                    extrapolate(&hs, &ht, st.level, level, &st.kernel, &f_pred, eps, wrap)
                 }
             }
         };
         let tk = std::time::Instant::now();
-        let kernel = kernel::build(&hs, &ht, level, &g, eps, settings.truncate);
+        let kernel = kernel::build(&hs, &ht, level, &g, eps, settings.truncate, wrap);
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("  kernel build {:.2}s", tk.elapsed().as_secs_f64());
         }
@@ -352,7 +359,7 @@ fn run<const D: usize>(
         } else {
             settings.tolerance * STAGE_TOLERANCE
         };
-        let log = iterate(&hs, &ht, &mut st, settings, tol, &mut rebuilds)?;
+        let log = iterate(&hs, &ht, &mut st, settings, tol, &mut rebuilds, wrap)?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("stage {stage} blur {blur:.3e} level {level} cells {}x{} pairs {} its {} err {:.2e} {:.2}s", hs.levels[level].len(), ht.levels[level].len(), st.kernel.pairs(), log.iterations, log.error, t0.elapsed().as_secs_f64());
         }
@@ -385,11 +392,11 @@ fn run<const D: usize>(
     // The map.
     let dim = D;
     let (mapped_sorted, refine) = match settings.map {
-        MapKind::Barycentric => (barycentric(&st, &ht), None),
+        MapKind::Barycentric => (barycentric(&st, &hs, &ht, wrap), None),
         MapKind::Assignment => {
             let g = absorbed(&st.g, &st.v, &ht.levels[point_level].mass, st.eps);
             let ta = std::time::Instant::now();
-            let r = refine_assignment(&hs, &ht, &st, g, side, settings.auction_eps);
+            let r = refine_assignment(&hs, &ht, &st, g, side, settings.auction_eps, wrap);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!("  auction {:.2}s", ta.elapsed().as_secs_f64());
             }
@@ -398,7 +405,7 @@ fn run<const D: usize>(
                     let y = &ht.levels[point_level].pos;
                     (x.iter().map(|&j| y[j as usize]).collect(), Some(info))
                 }
-                Err(info) => (barycentric(&st, &ht), Some(info)),
+                Err(info) => (barycentric(&st, &hs, &ht, wrap), Some(info)),
             }
         }
     };
@@ -409,6 +416,9 @@ fn run<const D: usize>(
         for a in 0..dim {
             mapped[o * dim + a] = mapped_sorted[k][a] as f32;
         }
+    }
+    if wrap == Wrap::Periodic {
+        super::cost::lift(dim, problem.source, &mut mapped);
     }
     super::check_finite("mapped", dim, &mapped)?;
     let assignment = match &refine {
@@ -471,13 +481,14 @@ fn hard_transform<const D: usize>(
     x: &[[f64; D]],
     y: &[[f64; D]],
     pot: &[f64],
+    wrap: Wrap,
 ) -> Vec<f64> {
     (0..ptr.len() - 1)
         .into_par_iter()
         .map(|i| {
             idx[ptr[i]..ptr[i + 1]]
                 .iter()
-                .map(|&j| sq(&x[i], &y[j as usize]) - pot[j as usize])
+                .map(|&j| sq(wrap, &x[i], &y[j as usize]) - pot[j as usize])
                 .fold(f64::INFINITY, f64::min)
         })
         .collect()
@@ -505,6 +516,7 @@ fn shrink_offset(soft: &[f64], hard: &[f64], ratio: f64) -> Vec<f64> {
 /// Target potential on level `to` from the source potential `f` on level `from`: the soft
 /// c-transform g(y) = −ε log Σ_I a_I exp((f_I − C(x_I, y))/ε) over the source cells the coarse
 /// kernel links to y's ancestor.
+#[allow(clippy::too_many_arguments)]
 fn extrapolate<const D: usize>(
     hs: &Hierarchy<D>,
     ht: &Hierarchy<D>,
@@ -513,6 +525,7 @@ fn extrapolate<const D: usize>(
     kernel: &Kernel,
     f: &[f64],
     eps: f64,
+    wrap: Wrap,
 ) -> Vec<f64> {
     let ys = &ht.levels[to];
     let (xs, a) = (&hs.levels[from].pos, &hs.levels[from].mass);
@@ -528,12 +541,12 @@ fn extrapolate<const D: usize>(
             let mut m = f64::NEG_INFINITY;
             for &i in rows {
                 let i = i as usize;
-                m = m.max(f[i] - sq(&xs[i], y) + eps * a[i].ln());
+                m = m.max(f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln());
             }
             let mut s = 0.0;
             for &i in rows {
                 let i = i as usize;
-                s += ((f[i] - sq(&xs[i], y) + eps * a[i].ln() - m) / eps).exp();
+                s += ((f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln() - m) / eps).exp();
             }
             -(m + eps * s.ln())
         })
@@ -570,6 +583,7 @@ fn iterate<const D: usize>(
     settings: &SinkhornSettings,
     tol: f64,
     rebuilds: &mut u32,
+    wrap: Wrap,
 ) -> Result<StageLog, SolveError> {
     let (a, b) = (
         hs.levels[st.level].mass.clone(),
@@ -684,7 +698,7 @@ fn iterate<const D: usize>(
             // Absorb and rebuild the kernel around the new potentials.
             let g = absorbed(&st.g, &st.v, &b, st.eps);
             let tk = std::time::Instant::now();
-            st.kernel = kernel::build(hs, ht, st.level, &g, st.eps, settings.truncate);
+            st.kernel = kernel::build(hs, ht, st.level, &g, st.eps, settings.truncate, wrap);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!(
                     "  rebuild at it {it} (drift e^{:.2}) {:.2}s",
@@ -706,10 +720,36 @@ fn iterate<const D: usize>(
     })
 }
 
-/// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level.
-fn barycentric<const D: usize>(st: &State, ht: &Hierarchy<D>) -> Vec<[f64; D]> {
+/// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level; on the torus
+/// x_i + Σ_j K_ij v_j δ(x_i, y_j) / Σ_j K_ij v_j, the mean of the shortest displacements (the plan of
+/// a row is concentrated within a few blurs of x_i, far less than half a period).
+fn barycentric<const D: usize>(
+    st: &State,
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    wrap: Wrap,
+) -> Vec<[f64; D]> {
     let y = &ht.levels[st.level].pos;
     let kern = &st.kernel;
+    if wrap == Wrap::Periodic {
+        let x = &hs.levels[st.level].pos;
+        return (0..kern.row_ptr.len() - 1)
+            .into_par_iter()
+            .map(|i| {
+                let mut acc = [0.0; D];
+                let mut w = 0.0;
+                for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
+                    let j = kern.col[p] as usize;
+                    let kv = f64::from(kern.k[p]) * st.v[j];
+                    w += kv;
+                    for a in 0..D {
+                        acc[a] += kv * delta(wrap, x[i][a], y[j][a]);
+                    }
+                }
+                std::array::from_fn(|a| x[i][a] + acc[a] / w)
+            })
+            .collect();
+    }
     (0..kern.row_ptr.len() - 1)
         .into_par_iter()
         .map(|i| {
@@ -761,16 +801,17 @@ fn refine_assignment<const D: usize>(
     mut v: Vec<f64>,
     side: f64,
     auction_eps: f64,
+    wrap: Wrap,
 ) -> Result<(Vec<u32>, RefineInfo), RefineInfo> {
     let (x, y) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
     let graph = Graph {
         row_ptr: &st.kernel.row_ptr,
         col: &st.kernel.col,
         cols: y.len(),
-        cost: |i: usize, j: usize| sq(&x[i], &y[j]),
+        cost: |i: usize, j: usize| sq(wrap, &x[i], &y[j]),
     };
     let n_cols = y.len();
-    let cost = |i: usize, j: usize| sq(&x[i], &y[j]);
+    let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]);
     let m = auction(
         &graph,
         &mut v,
@@ -874,3 +915,5 @@ fn finish_identity(problem: &Problem<'_>, n: usize) -> Solution {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod torus_tests;
