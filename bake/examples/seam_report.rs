@@ -7,18 +7,23 @@
 //! Bakes what is missing first, then renders square tiles of SIZE² pixels (default 256) the way
 //! `otbake texture` does (one point query per pixel, kernel σ = SIGMA_PX pixels, default 1.5) and
 //! splats them (`otbake blend --method splat`), and prints a Markdown table: for each image the
-//! seam across the left–right and the top–bottom join. Blends are every pair at ½/½ and all
-//! inputs at equal weights.
+//! seam across the left–right and the top–bottom join, and for renders the 95th percentile of the
+//! same ratio over the image's interior column and row pairs (its noise: a join scoring below it
+//! looks like any other pair of columns). Blends are every pair at ½/½ and all inputs at equal
+//! weights.
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
 use otbake::render::{render, Archives, Method, RenderSettings};
-use otbake::seam::{seam, seam_of_file, Seam};
+use otbake::seam::{seam, seam_of_file, spread, Seam};
 use otbake::texture::{render_texture, WeightField};
 
-fn row(name: &str, s: Seam) {
+fn row(name: &str, s: Seam, noise: Option<Seam>) {
+    let noise = noise.map_or("—".to_string(), |n| {
+        format!("{:.2} / {:.2}", n.horizontal, n.vertical)
+    });
     println!(
-        "| {name} | {:.2} | {:.2} | {:.2} |",
+        "| {name} | {:.2} | {:.2} | {:.2} | {noise} |",
         s.horizontal,
         s.vertical,
         s.worst()
@@ -45,13 +50,13 @@ fn main() -> anyhow::Result<()> {
         m.solver.kind(),
         m.proxy.samples
     );
-    println!("| image | seam left–right | seam top–bottom | worse |");
-    println!("|---|---|---|---|");
+    println!(
+        "| image | seam left–right | seam top–bottom | worse | interior pairs, 95th percentile |"
+    );
+    println!("|---|---|---|---|---|");
     for input in &m.inputs {
-        row(
-            &format!("{} (file)", input.name),
-            seam_of_file(&input.path)?,
-        );
+        let s = seam_of_file(&input.path)?;
+        row(&format!("{} (file)", input.name), s, None);
     }
     let mut weights: Vec<(String, Vec<f32>)> = Vec::new();
     for (i, input) in m.inputs.iter().enumerate() {
@@ -76,7 +81,7 @@ fn main() -> anyhow::Result<()> {
     for (name, w) in &weights {
         let field = WeightField::Constant(w.clone());
         let img = render_texture(archives.proxy()?, &maps, &field, size, size, sigma_px)?;
-        row(&format!("{name} (texture)"), seam(&img));
+        row(&format!("{name} (texture)"), seam(&img), Some(spread(&img)));
         let settings = RenderSettings {
             width: size,
             height: size,
@@ -84,7 +89,7 @@ fn main() -> anyhow::Result<()> {
             sigma_px,
         };
         let img = render(archives.proxy()?, &maps, w, &settings)?;
-        row(&format!("{name} (splat)"), seam(&img));
+        row(&format!("{name} (splat)"), seam(&img), Some(spread(&img)));
     }
     Ok(())
 }

@@ -451,7 +451,7 @@ impl Manifest {
             };
             return Err(at(
                 Some(p.kind.span()),
-                format!("proxy kind = \"{name}\" cannot serve periodic inputs: it is concentrated around the middle of the square, so maps to a tileable texture must move mass up to half a period, where the shortest way around the torus flips and blends of maps tear; use kind = \"uniform\" (uniform on the torus: maps only move mass by the texture's own variations) or kind = \"input\""),
+                format!("proxy kind = \"{name}\" cannot serve periodic inputs: it is concentrated in the middle of the square, so every map must carry mass across most of the tile, towards the half-period cut where the shortest way around the torus is ambiguous (onyx and pebbles: 90x the transport of a uniform proxy); use kind = \"uniform\" (the torus' own measure: maps then move mass only by the texture's variations, and blends stay local) or kind = \"input\""),
             ));
         }
         let source = match kind {

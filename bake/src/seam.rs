@@ -56,12 +56,63 @@ pub fn seam_of(width: usize, height: usize, value: impl Fn(usize, usize) -> [f64
     }
 }
 
-/// The seam of a rendered (linear) image, on its sRGB display values.
-pub fn seam(img: &Rgba) -> Seam {
-    seam_of(img.width, img.height, |x, y| {
+/// How far a single pair of adjacent columns (rows) inside the image strays from the mean, as the
+/// seam measure would score it: the 95th percentile over the interior pairs of (mean difference
+/// across that pair) / (mean difference over all interior pairs), per axis. The join of a seamless
+/// tile is just one more such pair, so seams up to this value are within the image's own noise
+/// (a render from a few hundred thousand points has plenty). NaN for images too small to have one.
+pub fn interior_spread(
+    width: usize,
+    height: usize,
+    value: impl Fn(usize, usize) -> [f64; 3],
+) -> Seam {
+    let diff = |a: [f64; 3], b: [f64; 3]| (0..3).map(|c| (a[c] - b[c]).abs()).sum::<f64>() / 3.0;
+    let p95 = |mut v: Vec<f64>| {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        v.sort_by(f64::total_cmp);
+        v[(v.len() * 95 / 100).min(v.len() - 1)] / mean
+    };
+    let columns: Vec<f64> = (0..width.saturating_sub(1))
+        .map(|x| {
+            (0..height)
+                .map(|y| diff(value(x, y), value(x + 1, y)))
+                .sum::<f64>()
+                / height as f64
+        })
+        .collect();
+    let rows: Vec<f64> = (0..height.saturating_sub(1))
+        .map(|y| {
+            (0..width)
+                .map(|x| diff(value(x, y), value(x, y + 1)))
+                .sum::<f64>()
+                / width as f64
+        })
+        .collect();
+    Seam {
+        horizontal: p95(columns),
+        vertical: p95(rows),
+    }
+}
+
+/// The display value of pixel (x, y) of a linear image: sRGB-encoded, clamped to [0, 1].
+fn display(img: &Rgba) -> impl Fn(usize, usize) -> [f64; 3] + '_ {
+    move |x, y| {
         let i = (y * img.width + x) * 4;
         std::array::from_fn(|c| f64::from(linear_to_srgb(img.pixels[i + c].clamp(0.0, 1.0))))
-    })
+    }
+}
+
+/// [`interior_spread`] of a rendered (linear) image, on its sRGB display values.
+pub fn spread(img: &Rgba) -> Seam {
+    interior_spread(img.width, img.height, display(img))
+}
+
+/// The seam of a rendered (linear) image, on its sRGB display values.
+pub fn seam(img: &Rgba) -> Seam {
+    seam_of(img.width, img.height, display(img))
 }
 
 /// The seam of an image file as stored (8-bit sRGB values), e.g. a texture input.
@@ -115,5 +166,8 @@ mod tests {
         let s = seam_of(n, n, ramp);
         assert!((s.horizontal - (n - 1) as f64).abs() < 1e-9, "{s:?}");
         assert!(s.vertical.is_nan(), "flat columns: {s:?}");
+        // Every interior pair of a ramp differs alike: the spread is 1.
+        let sp = interior_spread(n, n, ramp);
+        assert!((sp.horizontal - 1.0).abs() < 1e-9, "{sp:?}");
     }
 }

@@ -25,6 +25,10 @@ impl Blend<'_, '_> {
     ///
     /// A blend with color needs every map's node color sums: if one was baked without them
     /// (`[storage] node_colors = false`), this returns [`Error::MissingAttribute`].
+    ///
+    /// On a periodic blend the box is a box of the torus: it may cross the borders (give it as,
+    /// e.g., `[0.9, 1.1]`; each piece is counted), an axis at least one period wide covers the
+    /// whole circle, and a box with `hi < lo` on some axis is empty, as when clamped.
     pub fn range(&self, weights: &[f32], lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
         self.check_weights(weights)?;
         self.check_node_colors()?;

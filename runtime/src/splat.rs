@@ -19,7 +19,8 @@ pub struct SplatTarget<'b> {
 
 impl Blend<'_, '_> {
     /// Adds the kernel reconstruction of the blend for `weights` to every cell center of `target`:
-    /// the result equals a point query at each cell center (up to float summation order).
+    /// the result equals a point query at each cell center (up to float summation order). On a
+    /// periodic blend every point's kernel wraps around the grid's borders.
     pub fn splat(
         &self,
         weights: &[f32],

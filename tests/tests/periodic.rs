@@ -61,8 +61,8 @@ fn tile_seam(m: &Manifest, w: &[f32]) -> f64 {
 /// The test: the seam of a blended tile of two tileable textures is no worse than the
 /// inputs' (each input's file, and each input rendered alone the same way). The same blend baked
 /// clamped shows a seam, so the measure can fail. Measured (n = 20 000, 128² tiles, the worse join):
-/// files 1.12 and 0.99, inputs rendered 1.06 and 1.33, blends ½ + ½ 1.02, ¼ + ¾ 1.28, 0.8 + 0.2
-/// 1.05; the clamped ½ + ½ blend 2.65.
+/// files 1.12 and 0.99, inputs rendered 0.81 and 1.39, blends ½ + ½ 0.98, ¼ + ¾ 1.26, 0.8 + 0.2
+/// 0.84; the clamped ½ + ½ blend 2.65.
 #[test]
 fn a_periodic_blend_of_tileable_textures_tiles() {
     let m = baked("periodic-seam", &body(true, 20_000, "sliced"));

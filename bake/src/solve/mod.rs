@@ -9,6 +9,11 @@
 //!   millions of points and moves the source onto the target *distribution*, but its map is not the
 //!   OT map in general (NOTES.md: +16% cost on a uniform → three-blobs case, fine on Gaussians).
 //!
+//! * On the flat torus (tileable textures, `wrap = "periodic"`), [`solve_in`] with
+//!   [`Wrap::Periodic`] runs the same solvers with the squared distance to the nearest image:
+//!   `exact` and `sinkhorn` solve that problem (the metric enters only through `cost`), `sliced`
+//!   runs its torus variant (`circular`); maps come back as lifts `x + δ`, `|δ| <= ½`.
+//!
 //! Every solver returns a [`Report`] whose `detail` line is deterministic (no timings) because it is
 //! stored in archives that must be byte-identical, and every solver is deterministic for any rayon
 //! thread count. A solver that did not converge returns [`SolveError::NotConverged`]: a bad map is never

@@ -135,9 +135,9 @@ pub(super) fn check_settings(s: &SlicedSettings) -> Result<(), SolveError> {
 }
 
 /// Buffers of one direction, reused across iterations.
-struct Direction {
+pub(super) struct Direction {
     /// Projections of the moving points, then their 1D displacements.
-    xp: Vec<f64>,
+    pub(super) xp: Vec<f64>,
     /// Order keys of the moving points' projections, sorted along with `idx`.
     keys: Vec<u64>,
     /// Point indices, in key order after sorting.
@@ -150,7 +150,7 @@ struct Direction {
 }
 
 impl Direction {
-    fn new(n: usize) -> Self {
+    pub(super) fn new(n: usize) -> Self {
         Self {
             xp: vec![0.0; n],
             keys: vec![0; n],
@@ -164,7 +164,7 @@ impl Direction {
     /// Projects both clouds on `theta`, matches them by rank and leaves in `xp` the 1D displacement
     /// of every moving point (target value at its rank − its own value). Sequential: the directions
     /// of an iteration run in parallel instead.
-    fn displacements(&mut self, dim: usize, x: &[f64], y: &[f64], theta: &[f64]) {
+    pub(super) fn displacements(&mut self, dim: usize, x: &[f64], y: &[f64], theta: &[f64]) {
         for (k, p) in self.ykeys.iter_mut().zip(y.chunks_exact(dim)) {
             *k = order_key(dot(p, theta));
         }

@@ -310,10 +310,11 @@ fn texture_like(rng: &mut SplitMix64, n: usize) -> Vec<f32> {
 }
 
 /// The sliced solver on the torus moves a uniform proxy onto a texture-like density: converged on
-/// its own check directions, far closer than the proxy along lattice directions it never slices
-/// along (up to |θ|² = 400), at a cost near the exact optimum (below it: its points are not the
-/// target samples, so it does not pay for their noise). Measured at n = 2000: cost 0.76 of the
-/// optimum, independent residual 1/10 of the proxy's.
+/// its check directions, and along lattice directions up to |θ|² = 400 (most never checked) far
+/// closer to the target than the proxy, at a cost near the exact optimum. Measured at n = 2000:
+/// cost 0.991 of the optimum (its points are not the target samples, so it does not pay for all of
+/// their noise), circular sliced W2² 1/43 of the proxy's. (Slicing along lattice directions
+/// instead, tried first, reached 0.76 of the cost and only 1/10: it under-transported.)
 #[test]
 fn sliced_on_the_torus_matches_a_texture_like_density() {
     let mut rng = SplitMix64::new(2026);
@@ -341,7 +342,7 @@ fn sliced_on_the_torus_matches_a_texture_like_density() {
     assert_lifts(2, &s, &t, &sl);
     let ratio = sl.report.cost / exact.report.cost;
     assert!(
-        (0.7..1.05).contains(&ratio),
+        (0.95..1.1).contains(&ratio),
         "sliced {} vs exact {}",
         sl.report.cost,
         exact.report.cost
@@ -351,7 +352,7 @@ fn sliced_on_the_torus_matches_a_texture_like_density() {
     let (mapped, _) = super::circular::circular_sliced_w2(2, &f(&sl.mapped), &f(&t), &dirs);
     let (proxy, _) = super::circular::circular_sliced_w2(2, &f(&s), &f(&t), &dirs);
     assert!(
-        mapped < proxy / 5.0,
+        mapped < proxy / 20.0,
         "independent residual {mapped:e} vs the proxy's {proxy:e}"
     );
 }
