@@ -729,27 +729,10 @@ fn barycentric<const D: usize>(
     ht: &Hierarchy<D>,
     wrap: Wrap,
 ) -> Vec<[f64; D]> {
-    let y = &ht.levels[st.level].pos;
+    let (x, y) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
     let kern = &st.kernel;
-    if wrap == Wrap::Periodic {
-        let x = &hs.levels[st.level].pos;
-        return (0..kern.row_ptr.len() - 1)
-            .into_par_iter()
-            .map(|i| {
-                let mut acc = [0.0; D];
-                let mut w = 0.0;
-                for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
-                    let j = kern.col[p] as usize;
-                    let kv = f64::from(kern.k[p]) * st.v[j];
-                    w += kv;
-                    for a in 0..D {
-                        acc[a] += kv * delta(wrap, x[i][a], y[j][a]);
-                    }
-                }
-                std::array::from_fn(|a| x[i][a] + acc[a] / w)
-            })
-            .collect();
-    }
+    // x_i plus the weighted mean of the shortest displacements: the plain weighted mean of the y_j
+    // in the Euclidean case, and on the torus the circular mean around x_i.
     (0..kern.row_ptr.len() - 1)
         .into_par_iter()
         .map(|i| {
@@ -760,10 +743,10 @@ fn barycentric<const D: usize>(
                 let kv = f64::from(kern.k[p]) * st.v[j];
                 w += kv;
                 for a in 0..D {
-                    acc[a] += kv * y[j][a];
+                    acc[a] += kv * delta(wrap, x[i][a], y[j][a]);
                 }
             }
-            acc.map(|s| s / w)
+            std::array::from_fn(|a| x[i][a] + acc[a] / w)
         })
         .collect()
 }
