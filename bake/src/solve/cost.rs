@@ -181,6 +181,23 @@ mod tests {
     use super::*;
     use crate::solve::rng::SplitMix64;
 
+    /// The squared torus distance by brute force: the minimum over the 3^d shifts of `b`.
+    fn brute_torus_sq(a: &[f64], b: &[f64]) -> f64 {
+        let d = a.len();
+        (0..3usize.pow(d as u32))
+            .map(|code| {
+                let mut rest = code;
+                let mut s = 0.0;
+                for k in 0..d {
+                    let m = (rest % 3) as f64 - 1.0;
+                    rest /= 3;
+                    s += (b[k] + m - a[k]).powi(2);
+                }
+                s
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Torus distances equal the brute-force minimum over the 3^d images, and box bounds never
     /// exceed (and, for sampled boxes, nearly reach) the brute-force minimum over their points.
     #[test]
@@ -190,37 +207,11 @@ mod tests {
             for it in 0..2000 {
                 let a: Vec<f64> = (0..d).map(|_| rng.next_f64()).collect();
                 let b: Vec<f64> = (0..d).map(|_| rng.next_f64()).collect();
-                let mut brute = f64::INFINITY;
-                for code in 0..3usize.pow(d as u32) {
-                    let mut rest = code;
-                    let mut s = 0.0;
-                    for k in 0..d {
-                        let m = (rest % 3) as f64 - 1.0;
-                        rest /= 3;
-                        s += (b[k] + m - a[k]).powi(2);
-                    }
-                    brute = brute.min(s);
-                }
+                let brute = brute_torus_sq(&a, &b);
                 let af: Vec<f32> = a.iter().map(|&v| v as f32).collect();
                 let bf: Vec<f32> = b.iter().map(|&v| v as f32).collect();
-                let exact_f32 = {
-                    let (a, b): (Vec<f64>, Vec<f64>) = (
-                        af.iter().map(|&v| f64::from(v)).collect(),
-                        bf.iter().map(|&v| f64::from(v)).collect(),
-                    );
-                    let mut best = f64::INFINITY;
-                    for code in 0..3usize.pow(d as u32) {
-                        let mut rest = code;
-                        let mut s = 0.0;
-                        for k in 0..d {
-                            let m = (rest % 3) as f64 - 1.0;
-                            rest /= 3;
-                            s += (b[k] + m - a[k]).powi(2);
-                        }
-                        best = best.min(s);
-                    }
-                    best
-                };
+                let widen = |v: &[f32]| -> Vec<f64> { v.iter().map(|&x| f64::from(x)).collect() };
+                let exact_f32 = brute_torus_sq(&widen(&af), &widen(&bf));
                 assert!((sq_dist_in(Wrap::Periodic, &af, &bf) - exact_f32).abs() < 1e-15);
                 assert!((sq_dist_in(Wrap::Clamp, &af, &bf) - sq_dist(&af, &bf)).abs() < 1e-15);
                 let a3: [f64; 1] = [a[0]];
