@@ -3,9 +3,9 @@
 //!
 //! `cargo run --release --example sinkhorn_scaling -- N SHAPE [exact] [KEY=VALUE ..]`, e.g.
 //! `5000 duck exact` or `250000 duck tolerance=3e-4 auction_eps=0.0625` (keys: blur_spacing,
-//! tolerance, truncate, auction_eps, scaling).
+//! tolerance, truncate, auction_eps, scaling; `seed` is the shape's sample seed, 1 unless given).
 //! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
-//! luminance, seed 1). With `exact`, also runs the exact solver and prints the cost ratio and the
+//! luminance, seed 1 unless `seed=` says). With `exact`, also runs the exact solver and prints the cost ratio and the
 //! L2-UVP of the Sinkhorn map against the exact matching. `OTBAKE_TRACE=1` prints every stage.
 
 use otbake::input::{load, DensityChannel};
@@ -21,6 +21,7 @@ fn main() {
     let shape = args.get(2).map_or("duck", String::as_str);
     let with_exact = args.iter().skip(3).any(|s| s == "exact");
     let mut settings = SinkhornSettings::default();
+    let mut seed = 1u64;
     for kv in args.iter().skip(3).filter(|s| s.contains('=')) {
         let (k, v) = kv.split_once('=').expect("KEY=VALUE");
         let v: f64 = v.parse().expect("a number");
@@ -30,12 +31,13 @@ fn main() {
             "truncate" => settings.truncate = v,
             "auction_eps" => settings.auction_eps = v,
             "scaling" => settings.scaling = v,
+            "seed" => seed = v as u64,
             _ => panic!("unknown key {k}"),
         }
     }
     let path = format!("../shared/data/shapes/{shape}.png");
     let grid = load(std::path::Path::new(&path), DensityChannel::Inverted).expect("shape");
-    let target = importance_sample(&grid, n, 1).expect("samples");
+    let target = importance_sample(&grid, n, seed).expect("samples");
     let source = proxy_points(&ProxyShape::DEFAULT_GAUSSIAN, 2, n, 0).expect("proxy");
     let problem = Problem {
         dim: 2,

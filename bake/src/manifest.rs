@@ -18,7 +18,7 @@
 //! kind = "sinkhorn"             # sinkhorn | exact | sliced
 //! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
 //! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
-//! # blur_spacing = 1.5 (1.0 in 3D), scaling = 0.5, tolerance = 3e-3, max_iterations = 2000, truncate = 8.0,
+//! # blur_spacing = 1.5 (1.0 in 3D), scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0,
 //! # auction_eps = 0.25
 //! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0
 //!
