@@ -5,7 +5,8 @@
 //! `5000 duck exact` or `250000 duck tolerance=3e-4 auction_eps=0.0625` (keys: blur_spacing,
 //! tolerance, truncate, auction_eps, scaling; `seed` is the shape's sample seed, 1 unless given).
 //! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
-//! luminance, seed 1 unless `seed=` says). With `exact`, also runs the exact solver and prints the cost ratio and the
+//! luminance, seed 1 unless `seed=` says); a mesh name (cow, fish, torus, suzanne) instead of SHAPE
+//! makes it 3D: the mesh voxelized at 64³ and a 3D Gaussian proxy. With `exact`, also runs the exact solver and prints the cost ratio and the
 //! L2-UVP of the Sinkhorn map against the exact matching. `OTBAKE_TRACE=1` prints every stage.
 
 use otbake::input::{load, DensityChannel};
@@ -13,6 +14,7 @@ use otbake::proxy::{proxy_points, ProxyShape};
 use otbake::sample::importance_sample;
 use otbake::solve::metrics::l2_uvp;
 use otbake::solve::{solve, ExactSettings, Problem, SinkhornSettings, SolverSettings};
+use otbake::volume::voxelize::MeshOptions;
 use std::time::Instant;
 
 fn main() {
@@ -35,12 +37,32 @@ fn main() {
             _ => panic!("unknown key {k}"),
         }
     }
-    let path = format!("../shared/data/shapes/{shape}.png");
-    let grid = load(std::path::Path::new(&path), DensityChannel::Inverted).expect("shape");
+    // A mesh name (`cow`, `fish`, `torus`, `suzanne`) is a 3D problem: the mesh voxelized at 64³.
+    let mesh = match shape {
+        "cow" => Some("spot_triangulated"),
+        "fish" => Some("fish_blub"),
+        "torus" | "suzanne" => Some(shape),
+        _ => None,
+    };
+    let grid = match mesh {
+        Some(m) => {
+            let options = MeshOptions {
+                resolution: 64,
+                ..MeshOptions::default()
+            };
+            let path = format!("../shared/data/meshes/{m}.obj");
+            otbake::volume::voxelize::load(std::path::Path::new(&path), &options).expect("mesh")
+        }
+        None => {
+            let path = format!("../shared/data/shapes/{shape}.png");
+            load(std::path::Path::new(&path), DensityChannel::Inverted).expect("shape")
+        }
+    };
+    let dim = grid.dim();
     let target = importance_sample(&grid, n, seed).expect("samples");
-    let source = proxy_points(&ProxyShape::DEFAULT_GAUSSIAN, 2, n, 0).expect("proxy");
+    let source = proxy_points(&ProxyShape::DEFAULT_GAUSSIAN, dim, n, 0).expect("proxy");
     let problem = Problem {
-        dim: 2,
+        dim,
         source: &source,
         target: &target,
     };
@@ -66,7 +88,7 @@ fn main() {
             t.elapsed().as_secs_f64(),
             ex.report.cost,
             sk.report.cost / ex.report.cost,
-            l2_uvp(2, &sk.mapped, &ex.mapped, &target).expect("uvp")
+            l2_uvp(dim, &sk.mapped, &ex.mapped, &target).expect("uvp")
         );
     }
 }

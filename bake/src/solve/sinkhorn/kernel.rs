@@ -401,8 +401,12 @@ pub(super) fn build<const D: usize>(
 ) -> Kernel {
     let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
     let margin = theta * eps;
-    // Row test against g; f = row minima (hard c-transform).
-    let (rptr, ridx, f) = search_all(xs, tgt, level, g, margin, wrap);
+    // f = row minima (the hard c-transform of g), with each row's best column. The row test needs
+    // no search of its own: with f_i the row minimum, C_ij − f_i ≥ g_j for every pair, so the
+    // column minimum min_i' (C_i'j − f_i') is at least g_j, and a pair within θε of its row's best
+    // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too. A search with margin 0 finds
+    // only the minimizers, and halves the cost of a build.
+    let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap);
     // Column test against f.
     let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap);
     // Column-test pairs as rows, then the union with the row-test pairs, row by row.
