@@ -69,12 +69,15 @@
 mod archive;
 mod blend;
 mod error;
+mod footprint;
 mod grid;
 mod kernel;
+mod plane;
 mod point;
 mod prepared;
 mod range;
 mod splat;
+mod splat_region;
 mod stack;
 
 pub use archive::{Map, Proxy};
@@ -87,4 +90,4 @@ pub use otbake_formats::{Composite, MAX_DIM};
 pub use point::PointValue;
 pub use prepared::{Prepared, PreparedBuffers, PreparedSizes};
 pub use range::RangeValue;
-pub use splat::SplatTarget;
+pub use splat::{SplatTarget, SPLAT_TERM_TOLERANCE};

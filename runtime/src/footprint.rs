@@ -1,0 +1,289 @@
+//! Where one point lands on a region's grid: per axis, the cells within the kernel's cutoff along
+//! that axis, and their squared distances.
+//!
+//! A point query counts a point at a cell when `Σ_k (y_k − c_k)² <= r²` (summed in axis order).
+//! Every term is non-negative and rounding is monotone, so a cell can only count if each axis alone
+//! passes `(y_k − c_k)² <= r²`; along one axis that squared distance falls, then rises (centers
+//! increase with the index), so the cells passing it form an interval: the point's *span* on that
+//! axis. Spans are decided by the same float operations as the query, so region queries built from
+//! them skip nothing a per-cell query counts.
+
+use crate::splat::{ceil, floor};
+
+/// Cells per axis a [`Lanes`] span examines at once: a point whose candidate cells (the arithmetic
+/// span plus one cell of rounding slack each side) fit in this many takes the fixed-width paths.
+/// At σ = 0.5 cell the candidates are 5–6 cells.
+pub(crate) const LANES: usize = 8;
+
+/// Cells per axis whose centers [`Axes`] tabulates (on the stack; wider regions compute centers per
+/// use, with the same formula, and take the general paths).
+pub(crate) const CENTERS: usize = 2048;
+
+/// Center of cell `i` of an axis of `res` cells: the formula every query and caller uses.
+#[inline(always)]
+pub(crate) fn center(i: usize, res: f32) -> f32 {
+    (i as f32 + 0.5) / res
+}
+
+/// The axes of a region: grid resolution, the region's cells (global indices `first..=last`), the
+/// stride of each axis in the region's buffers (axis 0 fastest) and a table of centers.
+pub(crate) struct Axes<const D: usize> {
+    pub res: [f32; D],
+    pub first: [usize; D],
+    pub last: [usize; D],
+    pub stride: [usize; D],
+    /// Whether `centers[k]` holds axis k (the region is at most [`CENTERS`] cells wide there).
+    tabulated: [bool; D],
+    /// Centers of the region's cells, then `+∞` ([`LANES`] of padding and any unused entries): a
+    /// lane past the region's end gets an infinite distance, so it never passes the cutoff.
+    centers: [[f32; CENTERS + LANES]; D],
+}
+
+/// The span of one point on one axis, as [`Axes::lanes`] finds it.
+#[derive(Clone, Copy)]
+pub(crate) enum Lanes {
+    /// No cell of the region is within the cutoff along this axis: the point adds nothing.
+    Empty,
+    /// Too many candidate cells (wide kernel) or no table: take a general path over the candidate
+    /// cells `a..=b` (global indices, a superset of the passing ones).
+    Wide(usize, usize),
+    /// The cells `start + lead .. start + lead + len` (global indices, `len >= 1`) pass; `sq[j]` is
+    /// the squared distance to cell `start + j` (`+∞` past the region).
+    Span(Span),
+}
+
+/// See [`Lanes::Span`].
+#[derive(Clone, Copy)]
+pub(crate) struct Span {
+    pub start: usize,
+    pub lead: usize,
+    pub len: usize,
+    pub sq: [f32; LANES],
+}
+
+impl Span {
+    /// A placeholder (no cell).
+    pub const EMPTY: Span = Span {
+        start: 0,
+        lead: 0,
+        len: 0,
+        sq: [f32::INFINITY; LANES],
+    };
+
+    /// First passing cell (global index).
+    #[inline(always)]
+    pub fn first(&self) -> usize {
+        self.start + self.lead
+    }
+
+    /// Squared distance of the `j`-th passing cell.
+    #[inline(always)]
+    pub fn sq_at(&self, j: usize) -> f32 {
+        self.sq[(self.lead + j).min(LANES - 1)]
+    }
+}
+
+/// A point's window on one axis ([`Axes::window`]): of the [`LANES`] cells from `start` (global
+/// index), the cells `start + lead .. start + lead + len` pass the per-axis test.
+#[derive(Clone, Copy)]
+pub(crate) struct Window {
+    pub start: usize,
+    pub lead: usize,
+    pub len: usize,
+}
+
+impl Window {
+    /// First passing cell (global index).
+    #[inline(always)]
+    pub fn first(&self) -> usize {
+        self.start + self.lead
+    }
+}
+
+/// How many cells before the point's own cell a [`Window`] starts.
+const BACK: usize = 3;
+
+/// Widest truncation radius, in cells, for which a [`Window`] holds every passing cell: passing
+/// cells `i` satisfy `|u − (i + ½)| <= radius` (`u` the coordinate in cells) up to rounding far below
+/// a cell, so with `m = ⌊u⌋` they lie in `m − 3 ..= m + 2` while the radius stays below 2.5.
+pub(crate) const WINDOW_RADIUS: f32 = 2.4;
+
+impl<const D: usize> Axes<D> {
+    /// The axes of a region whose per-axis resolution, first cell and cell count are given (every
+    /// count >= 1, every region inside its grid: checked by the caller).
+    pub fn new(res: &[u32], start: &[u32], size: &[u32]) -> Self {
+        let mut a = Self {
+            res: [0.0; D],
+            first: [0; D],
+            last: [0; D],
+            stride: [0; D],
+            tabulated: [false; D],
+            centers: [[f32::INFINITY; CENTERS + LANES]; D],
+        };
+        let mut step = 1usize;
+        for k in 0..D {
+            let size_k = size.get(k).map_or(1, |&s| s as usize).max(1);
+            a.res[k] = res.get(k).map_or(1.0, |&r| r as f32);
+            a.first[k] = start.get(k).map_or(0, |&s| s as usize);
+            a.last[k] = a.first[k] + size_k - 1;
+            a.stride[k] = step;
+            step = step.saturating_mul(size_k);
+            if size_k <= CENTERS {
+                a.tabulated[k] = true;
+                for (j, c) in a.centers[k].iter_mut().take(size_k).enumerate() {
+                    *c = center(a.first[k] + j, a.res[k]);
+                }
+            }
+        }
+        a
+    }
+
+    /// Whether [`Self::window`] finds every passing cell of axis `k` for a kernel of truncation
+    /// radius `radius`: the axis is tabulated and the radius spans at most [`WINDOW_RADIUS`] cells.
+    pub fn windowed(&self, k: usize, radius: f32) -> bool {
+        self.tabulated[k] && radius * self.res[k] <= WINDOW_RADIUS
+    }
+
+    /// The window of a point at coordinate `y` on axis `k` (which must be [`Self::windowed`]):
+    /// [`LANES`] cells around it, all judged by the exact per-axis test in a few branch-free vector
+    /// operations. A point outside the region (or a NaN) gets a window with `len == 0`.
+    #[inline(always)]
+    pub fn window(&self, k: usize, y: f32, radius2: f32) -> Window {
+        let (first, last) = (self.first[k], self.last[k]);
+        // The point's cell, clamped into the region (clamping before the conversion keeps it in
+        // range; a point beyond the region's end keeps its last cells in the window).
+        let u = (y * self.res[k]).clamp(first as f32, (last + 1) as f32);
+        let start = (u as i32 as usize)
+            .saturating_sub(BACK)
+            .clamp(first, last + 1);
+        let c = self.centers::<LANES>(k, start);
+        let mut pass = 0u32;
+        for (j, &c) in c.iter().enumerate() {
+            let t = y - c;
+            pass |= ((t * t <= radius2) as u32) << j;
+        }
+        // Passing cells are contiguous: one run of ones.
+        let lead = pass.trailing_zeros() as usize;
+        let len = (u32::BITS - pass.leading_zeros()) as usize;
+        Window {
+            start,
+            lead: lead.min(LANES),
+            len: len.saturating_sub(lead),
+        }
+    }
+
+    /// Cells of the region along axis `k`.
+    #[inline(always)]
+    pub fn size(&self, k: usize) -> usize {
+        self.last[k] - self.first[k] + 1
+    }
+
+    /// Center of global cell `i` (`first[k] <= i <= last[k]`) of axis `k`.
+    #[inline(always)]
+    pub fn center(&self, k: usize, i: usize) -> f32 {
+        if self.tabulated[k] {
+            if let Some(&c) = self.centers[k].get(i.wrapping_sub(self.first[k])) {
+                return c;
+            }
+        }
+        center(i, self.res[k])
+    }
+
+    /// `B` consecutive tabulated centers of axis `k` from global cell `from` (`+∞` past the region).
+    #[inline(always)]
+    pub fn centers<const B: usize>(&self, k: usize, from: usize) -> [f32; B] {
+        let at = from.wrapping_sub(self.first[k]);
+        match self.centers[k].get(at..at.wrapping_add(B)) {
+            Some(s) => {
+                let mut out = [0.0; B];
+                out.copy_from_slice(s);
+                out
+            }
+            None => [f32::INFINITY; B],
+        }
+    }
+
+    /// The span of a point at coordinate `y` on axis `k` for a kernel of truncation radius `radius`
+    /// (`radius2` its square, the cutoff), examined [`LANES`] cells at once.
+    #[inline(always)]
+    pub fn lanes(&self, k: usize, y: f32, radius: f32, radius2: f32) -> Lanes {
+        let Some((a, b)) = self.quick(k, y, radius, radius2) else {
+            return Lanes::Empty;
+        };
+        if !self.tabulated[k] || b - a >= LANES {
+            return Lanes::Wide(a, b);
+        }
+        // `a..=b` holds every passing cell; the lanes cover it (and maybe a few more cells, which
+        // the same exact test judges).
+        let c = self.centers::<LANES>(k, a);
+        let mut sq = [0.0f32; LANES];
+        let mut mask = 0u32;
+        for j in 0..LANES {
+            let t = y - c[j];
+            sq[j] = t * t;
+            mask |= ((sq[j] <= radius2) as u32) << j;
+        }
+        if mask == 0 {
+            return Lanes::Empty;
+        }
+        let lead = mask.trailing_zeros() as usize;
+        // Passing cells are contiguous: the mask is one run of ones.
+        let len = (32 - mask.leading_zeros()) as usize - lead;
+        Lanes::Span(Span {
+            start: a,
+            lead,
+            len,
+            sq,
+        })
+    }
+
+    /// A superset of the passing cells of axis `k` (clipped to the region), from arithmetic with one
+    /// cell of slack each side when coordinates are small enough for it to be accurate to a fraction
+    /// of a cell; the exact span otherwise. `None` if no cell passes (or, for the arithmetic, none can).
+    #[inline(always)]
+    pub fn quick(&self, k: usize, y: f32, radius: f32, radius2: f32) -> Option<(usize, usize)> {
+        let res = self.res[k];
+        let extent = (y.abs() + radius) * res;
+        if extent.is_nan() || extent >= 1e6 {
+            return self.exact(k, y, radius2);
+        }
+        let a = (ceil((y - radius) * res - 0.5) - 1).max(self.first[k] as i64);
+        let b = (floor((y + radius) * res - 0.5) + 1).min(self.last[k] as i64);
+        if a > b {
+            None
+        } else {
+            Some((a as usize, b as usize))
+        }
+    }
+
+    /// The passing cells of axis `k`, exactly: found from the nearest cell outwards, so rounding in
+    /// the estimate of the nearest cell cannot drop one.
+    pub fn exact(&self, k: usize, y: f32, radius2: f32) -> Option<(usize, usize)> {
+        let (res, first, last) = (self.res[k], self.first[k], self.last[k]);
+        let f = |i: usize| {
+            let t = y - self.center(k, i);
+            t * t
+        };
+        // Estimate of the nearest cell, clamped before the integer conversion.
+        let guess = floor((y * res).clamp(first as f32, last as f32 + 1.0)).max(0) as usize;
+        let mut m = guess.clamp(first, last);
+        while m > first && f(m - 1) < f(m) {
+            m -= 1;
+        }
+        while m < last && f(m + 1) < f(m) {
+            m += 1;
+        }
+        let fm = f(m);
+        if fm.is_nan() || fm > radius2 {
+            return None;
+        }
+        let (mut a, mut b) = (m, m);
+        while a > first && f(a - 1) <= radius2 {
+            a -= 1;
+        }
+        while b < last && f(b + 1) <= radius2 {
+            b += 1;
+        }
+        Some((a, b))
+    }
+}
