@@ -19,6 +19,15 @@ pub(crate) const LANES: usize = 8;
 /// use, with the same formula, and take the general paths).
 pub(crate) const CENTERS: usize = 2048;
 
+/// `v` rounded to the nearest integer (ties to even) for `v` in `[−½, 2²²]`: adding 1.5·2²³ leaves
+/// no fraction bits, so the sum's low bits are the rounded value. Three instructions, where a
+/// saturating `as` conversion costs checks for NaN and overflow that cannot happen here.
+#[inline(always)]
+fn round_small(v: f32) -> i32 {
+    const ROUND: f32 = 12_582_912.0;
+    ((v + ROUND).to_bits() as i32).wrapping_sub(ROUND.to_bits() as i32)
+}
+
 /// Center of cell `i` of an axis of `res` cells: the formula every query and caller uses.
 #[inline(always)]
 pub(crate) fn center(i: usize, res: f32) -> f32 {
@@ -32,6 +41,8 @@ pub(crate) struct Axes<const D: usize> {
     pub first: [usize; D],
     pub last: [usize; D],
     pub stride: [usize; D],
+    /// `first` and `last + 1` as floats, per axis.
+    bounds: [[f32; 2]; D],
     /// Whether `centers[k]` holds axis k (the region is at most [`CENTERS`] cells wide there).
     tabulated: [bool; D],
     /// Centers of the region's cells, then `+∞` ([`LANES`] of padding and any unused entries): a
@@ -93,6 +104,19 @@ pub(crate) struct Window {
 }
 
 impl Window {
+    /// The window of the [`LANES`] cells from `start` whose passing lanes are the set bits of
+    /// `pass` (bit `j` for cell `start + j`): one run of ones, since passing cells are contiguous.
+    #[inline(always)]
+    pub fn new(start: usize, pass: u32) -> Self {
+        let lead = pass.trailing_zeros() as usize;
+        let end = (u32::BITS - pass.leading_zeros()) as usize;
+        Window {
+            start,
+            lead: lead.min(LANES),
+            len: end.saturating_sub(lead),
+        }
+    }
+
     /// First passing cell (global index).
     #[inline(always)]
     pub fn first(&self) -> usize {
@@ -105,7 +129,8 @@ const BACK: usize = 3;
 
 /// Widest truncation radius, in cells, for which a [`Window`] holds every passing cell: passing
 /// cells `i` satisfy `|u − (i + ½)| <= radius` (`u` the coordinate in cells) up to rounding far below
-/// a cell, so with `m = ⌊u⌋` they lie in `m − 3 ..= m + 2` while the radius stays below 2.5.
+/// a cell, so with `m = ⌊u⌋` they lie in `m − 3 ..= m + 2` while the radius stays below 2.5, and a
+/// window from `m − 4` or `m − 3` holds them.
 pub(crate) const WINDOW_RADIUS: f32 = 2.4;
 
 impl<const D: usize> Axes<D> {
@@ -117,6 +142,7 @@ impl<const D: usize> Axes<D> {
             first: [0; D],
             last: [0; D],
             stride: [0; D],
+            bounds: [[0.0; 2]; D],
             tabulated: [false; D],
             centers: [[f32::INFINITY; CENTERS + LANES]; D],
         };
@@ -127,6 +153,7 @@ impl<const D: usize> Axes<D> {
             a.first[k] = start.get(k).map_or(0, |&s| s as usize);
             a.last[k] = a.first[k] + size_k - 1;
             a.stride[k] = step;
+            a.bounds[k] = [a.first[k] as f32, (a.last[k] + 1) as f32];
             step = step.saturating_mul(size_k);
             if size_k <= CENTERS {
                 a.tabulated[k] = true;
@@ -144,32 +171,39 @@ impl<const D: usize> Axes<D> {
         self.tabulated[k] && radius * self.res[k] <= WINDOW_RADIUS
     }
 
-    /// The window of a point at coordinate `y` on axis `k` (which must be [`Self::windowed`]):
-    /// [`LANES`] cells around it, all judged by the exact per-axis test in a few branch-free vector
-    /// operations. A point outside the region (or a NaN) gets a window with `len == 0`.
+    /// The first of the [`LANES`] cells of the window of a point at coordinate `y` on axis `k`
+    /// (which must be [`Self::windowed`]): the window holds every cell where `(y − c)² <= r²` can
+    /// hold. A point outside the region (or a NaN) gets a window of the region's first or last
+    /// cells, where no cell passes.
     #[inline(always)]
+    pub fn window_start(&self, k: usize, y: f32) -> usize {
+        // The point's cell, clamped into the region by comparisons (which also map a NaN to the
+        // region's start; a point beyond the region's end keeps its last cells in the window),
+        // then rounded: `round(u − ½)` is `⌊u⌋` or `⌊u⌋ − 1`, so the window starts 3 or 4 cells
+        // before the point's cell and still holds every cell it can reach.
+        let [lo, hi] = self.bounds[k];
+        let u = y * self.res[k];
+        let u = if u >= lo { u } else { lo };
+        let u = if u <= hi { u } else { hi };
+        let m = round_small(u - 0.5);
+        (m.saturating_sub(BACK as i32).max(0) as usize)
+            .max(self.first[k])
+            .min(self.last[k] + 1)
+    }
+
+    /// The window of a point at coordinate `y` on axis `k` (which must be [`Self::windowed`]): its
+    /// [`LANES`] cells judged by the exact per-axis test in a few branch-free vector operations.
+    /// A point outside the region (or a NaN) gets a window with `len == 0`.
+    #[inline(never)]
     pub fn window(&self, k: usize, y: f32, radius2: f32) -> Window {
-        let (first, last) = (self.first[k], self.last[k]);
-        // The point's cell, clamped into the region (clamping before the conversion keeps it in
-        // range; a point beyond the region's end keeps its last cells in the window).
-        let u = (y * self.res[k]).clamp(first as f32, (last + 1) as f32);
-        let start = (u as i32 as usize)
-            .saturating_sub(BACK)
-            .clamp(first, last + 1);
+        let start = self.window_start(k, y);
         let c = self.centers::<LANES>(k, start);
         let mut pass = 0u32;
         for (j, &c) in c.iter().enumerate() {
             let t = y - c;
             pass |= ((t * t <= radius2) as u32) << j;
         }
-        // Passing cells are contiguous: one run of ones.
-        let lead = pass.trailing_zeros() as usize;
-        let len = (u32::BITS - pass.leading_zeros()) as usize;
-        Window {
-            start,
-            lead: lead.min(LANES),
-            len: len.saturating_sub(lead),
-        }
+        Window::new(start, pass)
     }
 
     /// Cells of the region along axis `k`.

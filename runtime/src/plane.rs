@@ -3,14 +3,16 @@
 //! each point is handled by a fixed-shape, branch-free computation on 4-wide rows — the shape the
 //! compiler turns into SIMD.
 //!
-//! Per point: one window per axis (`footprint::Window`: eight cells judged by the exact per-axis test at once), a
-//! block of four cells of axis 0 from the first passing cell (moved left at the region's right end,
-//! so it never leaves the region), and one row per passing cell of axis 1. Lanes of a row that fail
+//! Per point: one window per axis (`footprint::Window`: eight cells judged by the exact per-axis
+//! test at once), a block of four cells of axis 0 from the first passing cell (moved left at the
+//! region's right end, so it never leaves the region), and one row per passing cell of axis 1.
+//! Points are gathered in chunks of [`CHUNK`] so that the kernel weights of a whole chunk come from
+//! one long vector loop, then each point's rows are added to the cells. Lanes of a row that fail
 //! the full cutoff test add `-0.0` (splat) or `+0.0` (point grid), which leave the sums unchanged
 //! (see [`kept`]), so each cell gets exactly the terms, in the same order, of the per-cell
 //! reference: `point::point` for [`Prepared::point_grid`], `splat::splat_cells` for the splat.
 //! Points whose span on an axis is wider than four cells (possible only near the window radius)
-//! take the general paths.
+//! take the general paths, after the pending chunk.
 
 use crate::footprint::Axes;
 use crate::grid::Batch;
@@ -18,23 +20,25 @@ use crate::kernel;
 use crate::point::PointValue;
 use crate::prepared::Prepared;
 
-/// Cells of a block row.
+/// Cells of a block row, and most rows of a block.
 const B: usize = 4;
+
+/// Points whose blocks wait for their weights together.
+const CHUNK: usize = 32;
 
 /// Whether a region can take the 2D paths for a kernel of truncation radius `radius`.
 pub(crate) fn fits(axes: &Axes<2>, radius: f32) -> bool {
     axes.windowed(0, radius) && axes.windowed(1, radius) && axes.size(0) >= B
 }
 
-/// A point's block: cells `col .. col + 4` of the region's rows (buffer offsets), their squared
-/// distances `s0` along axis 0, and `rows` rows from global row `row0`, with squared distances `s1`
-/// along axis 1 (`+∞` past the region).
+/// A point's block: `rows` rows of four cells, the first at buffer offset `at` and the next ones
+/// a row stride apart; `sq` holds the squared distances along axis 0 of the four columns, then
+/// along axis 1 of the four rows (`+∞` past the region).
+#[derive(Clone, Copy)]
 struct Block {
-    col: usize,
-    s0: [f32; B],
-    row0: usize,
+    at: usize,
     rows: usize,
-    s1: [f32; B],
+    sq: [f32; 2 * B],
 }
 
 /// The block of a point at (`x`, `y`): `Ok(None)` if it reaches no cell of the region, `Err(())` if
@@ -50,24 +54,19 @@ fn block(axes: &Axes<2>, x: f32, y: f32, radius2: f32) -> Result<Option<Block>, 
         return Err(());
     }
     let s = wx.first().min(axes.last[0] + 1 - B);
-    Ok(Some(Block {
-        col: s - axes.first[0],
-        s0: squares(x, &axes.centers::<B>(0, s)),
-        row0: wy.first(),
-        rows: wy.len,
-        s1: squares(y, &axes.centers::<B>(1, wy.first())),
-    }))
-}
-
-/// `(y − c)²` per center: the squared distances of `point::point` along one axis.
-#[inline(always)]
-fn squares(y: f32, c: &[f32; B]) -> [f32; B] {
-    let mut out = [0.0; B];
-    for (o, &c) in out.iter_mut().zip(c) {
-        let t = y - c;
-        *o = t * t;
+    let cx = axes.centers::<B>(0, s);
+    let cy = axes.centers::<B>(1, wy.first());
+    let mut sq = [0.0f32; 2 * B];
+    for i in 0..B {
+        let (t, u) = (x - cx[i], y - cy[i]);
+        sq[i] = t * t;
+        sq[B + i] = u * u;
     }
-    out
+    Ok(Some(Block {
+        at: (wy.first() - axes.first[1]) * axes.stride[1] + (s - axes.first[0]),
+        rows: wy.len,
+        sq,
+    }))
 }
 
 /// `v` if `keep`, else `zero` (`-0.0` or `+0.0`), as bit operations so that rows of lanes
@@ -80,10 +79,129 @@ fn kept(keep: bool, v: f32, zero: f32) -> f32 {
     f32::from_bits((v.to_bits() & m) | (zero.to_bits() & !m))
 }
 
-/// The `i`-th entry of a 4-array (`i < 4` always holds where it is used; clamped, so no panic).
-#[inline(always)]
-fn at4(a: &[f32; B], i: usize) -> f32 {
-    a[i.min(B - 1)]
+/// Blocks of up to [`CHUNK`] points and their colors, in point order.
+struct Chunk {
+    len: usize,
+    block: [Block; CHUNK],
+    color: [[f32; 3]; CHUNK],
+}
+
+impl Chunk {
+    fn new() -> Self {
+        Self {
+            len: 0,
+            block: [Block {
+                at: 0,
+                rows: 0,
+                sq: [f32::INFINITY; 2 * B],
+            }; CHUNK],
+            color: [[0.0; 3]; CHUNK],
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, b: Block, c: [f32; 3]) {
+        let at = self.len.min(CHUNK - 1);
+        self.block[at] = b;
+        self.color[at] = c;
+        self.len = at + 1;
+    }
+
+    /// Adds the splat terms of every waiting point (`color` holds their `premultiplied` colors)
+    /// and empties the chunk. A term is `splat_cells`': `g_0 · (g_1 · scale)` for the density,
+    /// `(g_0 · cm) · (g_1 · scale)` for a color channel, where the squared distance summed in axis
+    /// order passes the cutoff.
+    fn splat(
+        &mut self,
+        kp: kernel::Prepared,
+        scale: f32,
+        stride: usize,
+        density: &mut [f32],
+        mut color: Option<&mut [f32]>,
+    ) {
+        let n = self.len.min(CHUNK);
+        self.len = 0;
+        if n == 0 {
+            return;
+        }
+        // Every factor of the chunk in one vector loop.
+        let mut g = [[0.0f32; 2 * B]; CHUNK];
+        for (g, b) in g.iter_mut().zip(&self.block).take(n) {
+            *g = kp.weights(&b.sq);
+        }
+        let r2max = kp.radius2;
+        for ((b, g), cm) in self.block[..n].iter().zip(&g).zip(&self.color) {
+            let (s0, g0) = (&b.sq[..B], &g[..B]);
+            // Interleaved-RGB lanes: lane `l` is cell `l / 3`, channel `l % 3`.
+            let s0c: [f32; 3 * B] = core::array::from_fn(|l| b.sq[l / 3]);
+            let gc: [f32; 3 * B] = core::array::from_fn(|l| g[l / 3] * cm[l % 3]);
+            for r in 0..b.rows.min(B) {
+                let (t, p) = (b.sq[B + r], g[B + r] * scale);
+                let at = b.at + r * stride;
+                if let Some(d) = density.get_mut(at..at + B) {
+                    for ((d, &s), &g) in d.iter_mut().zip(s0).zip(g0) {
+                        *d += kept(s + t <= r2max, g * p, -0.0);
+                    }
+                }
+                let px = color
+                    .as_deref_mut()
+                    .and_then(|c| c.get_mut(at * 3..(at + B) * 3));
+                if let Some(px) = px {
+                    for ((px, &s), &gc) in px.iter_mut().zip(&s0c).zip(&gc) {
+                        *px += kept(s + t <= r2max, gc * p, -0.0);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Adds the point-query terms of every waiting point (`color` holds their color ratios) and
+    /// empties the chunk: `w = kernel::exp(r² · −1/2σ²)` with `r²` summed in axis order, added to
+    /// the density and times the color to the color sums, where `r²` passes the cutoff.
+    fn grid(
+        &mut self,
+        kp: kernel::Prepared,
+        stride: usize,
+        has_color: bool,
+        out: &mut [PointValue],
+    ) {
+        let n = self.len.min(CHUNK);
+        self.len = 0;
+        if n == 0 {
+            return;
+        }
+        // The whole 4×4 block of every point (rows past a point's last add nothing), weighed in
+        // one vector loop.
+        let mut r2 = [[0.0f32; B * B]; CHUNK];
+        for (r2, b) in r2.iter_mut().zip(&self.block).take(n) {
+            for (l, r2) in r2.iter_mut().enumerate() {
+                *r2 = b.sq[l % B] + b.sq[B + l / B];
+            }
+        }
+        let mut w = [[0.0f32; B * B]; CHUNK];
+        for (w, r2) in w.iter_mut().zip(&r2).take(n) {
+            *w = kp.weights(r2);
+        }
+        let r2max = kp.radius2;
+        for (((b, r2), w), c) in self.block[..n].iter().zip(&r2).zip(&w).zip(&self.color) {
+            for r in 0..b.rows.min(B) {
+                let at = b.at + r * stride;
+                let Some(cells) = out.get_mut(at..at + B) else {
+                    continue;
+                };
+                let (r2, w) = (&r2[r * B..r * B + B], &w[r * B..r * B + B]);
+                for ((v, &r2), &w) in cells.iter_mut().zip(r2).zip(w) {
+                    let keep = r2 <= r2max;
+                    v.density += kept(keep, w, 0.0);
+                    if has_color {
+                        for (a, c) in v.color.iter_mut().zip(c) {
+                            *a += kept(keep, w * c, 0.0);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 impl Prepared<'_> {
@@ -100,8 +218,8 @@ impl Prepared<'_> {
         let mean_mass = self.mean_mass;
         let has_color = self.has_color;
         let stride = axes.stride[1];
-        let r2max = kp.radius2;
-        self.walk(axes, radius, r2max, |range| {
+        let mut chunk = Chunk::new();
+        self.walk(axes, radius, kp.radius2, |range| {
             let Some(points) = self.positions.get(range.start * 2..range.end * 2) else {
                 return;
             };
@@ -117,11 +235,16 @@ impl Prepared<'_> {
                     _ => [0.0; 3],
                 };
                 let cm = crate::splat::premultiplied(c, mean_mass);
-                let b = match block(axes, x, y, r2max) {
-                    Ok(Some(b)) => b,
-                    Ok(None) => continue,
+                match block(axes, x, y, kp.radius2) {
+                    Ok(Some(b)) => {
+                        if chunk.len == CHUNK {
+                            chunk.splat(kp, scale, stride, density, color.as_deref_mut());
+                        }
+                        chunk.push(b, cm);
+                    }
+                    Ok(None) => {}
                     Err(()) => {
-                        let color = color.as_deref_mut();
+                        chunk.splat(kp, scale, stride, density, color.as_deref_mut());
                         crate::splat_region::splat_point(
                             axes,
                             &[x, y],
@@ -130,49 +253,18 @@ impl Prepared<'_> {
                             radius,
                             scale,
                             density,
-                            color,
+                            color.as_deref_mut(),
                         );
-                        continue;
-                    }
-                };
-                // Factors of both axes in one vector loop.
-                let (s0, s1) = (b.s0, b.s1);
-                let g = kp.weights(&[s0[0], s0[1], s0[2], s0[3], s1[0], s1[1], s1[2], s1[3]]);
-                let g0 = [g[0], g[1], g[2], g[3]];
-                let g1 = [g[4], g[5], g[6], g[7]];
-                // Interleaved-RGB lanes: lane `l` is cell `l / 3`, channel `l % 3`.
-                let s0c: [f32; 3 * B] = core::array::from_fn(|l| at4(&s0, l / 3));
-                let gc: [f32; 3 * B] = core::array::from_fn(|l| at4(&g0, l / 3) * cm[l % 3]);
-                for r in 0..b.rows.min(B) {
-                    // `splat_cells`' terms: `g_0 · (g_1 · scale)` and `(g_0 · cm) · (g_1 · scale)`,
-                    // kept where the squared distance (summed in axis order) passes.
-                    let (t, p) = (at4(&s1, r), at4(&g1, r) * scale);
-                    let at = (b.row0 + r - axes.first[1]) * stride + b.col;
-                    if let Some(d) = density.get_mut(at..at + B) {
-                        if let Ok(d) = <&mut [f32; B]>::try_from(d) {
-                            for i in 0..B {
-                                d[i] += kept(s0[i] + t <= r2max, g0[i] * p, -0.0);
-                            }
-                        }
-                    }
-                    if let Some(px) = color
-                        .as_deref_mut()
-                        .and_then(|c| c.get_mut(at * 3..(at + B) * 3))
-                    {
-                        if let Ok(px) = <&mut [f32; 3 * B]>::try_from(px) {
-                            for l in 0..3 * B {
-                                px[l] += kept(s0c[l] + t <= r2max, gc[l] * p, -0.0);
-                            }
-                        }
                     }
                 }
             }
         });
+        chunk.splat(kp, scale, stride, density, color);
     }
 
-    /// Kernel sums of a 2D region that [`fits`]: `point_grid`'s fast path. `batch` holds the
-    /// general path's pending terms; it is flushed before a block adds to cells, so every cell
-    /// still receives its terms in point order.
+    /// Kernel sums of a 2D region that [`fits`]: `point_grid`'s fast path. Points the blocks do
+    /// not take go through `batch`; each path empties the other's pending points before adding
+    /// its own, so every cell still receives its terms in point order.
     pub(crate) fn grid_plane(
         &self,
         kp: kernel::Prepared,
@@ -183,8 +275,8 @@ impl Prepared<'_> {
     ) {
         let has_color = self.has_color;
         let stride = axes.stride[1];
-        let r2max = kp.radius2;
-        self.walk(axes, radius, r2max, |range| {
+        let mut chunk = Chunk::new();
+        self.walk(axes, radius, kp.radius2, |range| {
             let Some(points) = self.positions.get(range.start * 2..range.end * 2) else {
                 return;
             };
@@ -199,10 +291,17 @@ impl Prepared<'_> {
                     Some(&[r, g, b]) => [r, g, b],
                     _ => [0.0; 3],
                 };
-                let b = match block(axes, x, y, r2max) {
-                    Ok(Some(b)) => b,
-                    Ok(None) => continue,
+                match block(axes, x, y, kp.radius2) {
+                    Ok(Some(b)) => {
+                        batch.flush(kp, has_color, out);
+                        if chunk.len == CHUNK {
+                            chunk.grid(kp, stride, has_color, out);
+                        }
+                        chunk.push(b, c);
+                    }
+                    Ok(None) => {}
                     Err(()) => {
+                        chunk.grid(kp, stride, has_color, out);
                         crate::grid::grid_point(
                             axes,
                             &[x, y],
@@ -213,30 +312,10 @@ impl Prepared<'_> {
                             batch,
                             out,
                         );
-                        continue;
-                    }
-                };
-                batch.flush(kp, has_color, out);
-                for r in 0..b.rows.min(B) {
-                    // Summed in axis order, as `point::point` does.
-                    let t = at4(&b.s1, r);
-                    let r2 = b.s0.map(|s| s + t);
-                    let w = kp.weights(&r2);
-                    let at = (b.row0 + r - axes.first[1]) * stride + b.col;
-                    let Some(cells) = out.get_mut(at..at + B) else {
-                        continue;
-                    };
-                    for ((v, w), r2) in cells.iter_mut().zip(w).zip(r2) {
-                        let keep = r2 <= r2max;
-                        v.density += kept(keep, w, 0.0);
-                        if has_color {
-                            for (a, c) in v.color.iter_mut().zip(c) {
-                                *a += kept(keep, w * c, 0.0);
-                            }
-                        }
                     }
                 }
             }
         });
+        chunk.grid(kp, stride, has_color, out);
     }
 }
