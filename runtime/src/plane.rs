@@ -157,49 +157,78 @@ impl Chunk {
 
     /// Adds the point-query terms of every waiting point (`color` holds their color ratios) and
     /// empties the chunk: `w = kernel::exp(r² · −1/2σ²)` with `r²` summed in axis order, added to
-    /// the density and times the color to the color sums, where `r²` passes the cutoff.
+    /// the density and times the color to the color sums, where `r²` passes the cutoff. The
+    /// passing (point, cell) pairs of the chunk are packed first (branch-free), so the weights
+    /// are computed for them only, in one vector loop.
     fn grid(
         &mut self,
         kp: kernel::Prepared,
         stride: usize,
         has_color: bool,
+        pairs: &mut Pairs,
         out: &mut [PointValue],
     ) {
         let n = self.len.min(CHUNK);
         self.len = 0;
-        if n == 0 {
-            return;
-        }
-        // The whole 4×4 block of every point (rows past a point's last add nothing), weighed in
-        // one vector loop.
-        let mut r2 = [[0.0f32; B * B]; CHUNK];
-        for (r2, b) in r2.iter_mut().zip(&self.block).take(n) {
-            for (l, r2) in r2.iter_mut().enumerate() {
-                *r2 = b.sq[l % B] + b.sq[B + l / B];
+        let r2max = kp.radius2;
+        let mut len = 0usize;
+        for (p, b) in self.block[..n].iter().enumerate() {
+            for r in 0..b.rows.min(B) {
+                let t = b.sq[B + r];
+                let at = b.at + r * stride;
+                for i in 0..B {
+                    // Summed in axis order, as `point::point` does.
+                    let r2 = b.sq[i] + t;
+                    let j = len.min(PAIRS - 1);
+                    pairs.cell[j] = at + i;
+                    pairs.r2[j] = r2;
+                    pairs.point[j] = p;
+                    len = j + (r2 <= r2max) as usize;
+                }
             }
         }
-        let mut w = [[0.0f32; B * B]; CHUNK];
-        for (w, r2) in w.iter_mut().zip(&r2).take(n) {
-            *w = kp.weights(r2);
+        let len = len.min(PAIRS);
+        let (r2, w) = (&pairs.r2[..len], &mut pairs.w[..len]);
+        for (w, &r2) in w.iter_mut().zip(r2) {
+            *w = kp.weight(r2);
         }
-        let r2max = kp.radius2;
-        for (((b, r2), w), c) in self.block[..n].iter().zip(&r2).zip(&w).zip(&self.color) {
-            for r in 0..b.rows.min(B) {
-                let at = b.at + r * stride;
-                let Some(cells) = out.get_mut(at..at + B) else {
-                    continue;
-                };
-                let (r2, w) = (&r2[r * B..r * B + B], &w[r * B..r * B + B]);
-                for ((v, &r2), &w) in cells.iter_mut().zip(r2).zip(w) {
-                    let keep = r2 <= r2max;
-                    v.density += kept(keep, w, 0.0);
-                    if has_color {
-                        for (a, c) in v.color.iter_mut().zip(c) {
-                            *a += kept(keep, w * c, 0.0);
-                        }
+        for ((&cell, &w), &p) in pairs.cell[..len]
+            .iter()
+            .zip(&pairs.w[..len])
+            .zip(&pairs.point)
+        {
+            if let Some(v) = out.get_mut(cell) {
+                v.density += w;
+                if has_color {
+                    let c = self.color[p.min(CHUNK - 1)];
+                    for (a, c) in v.color.iter_mut().zip(c) {
+                        *a += w * c;
                     }
                 }
             }
+        }
+    }
+}
+
+/// Most (point, cell) pairs of a chunk: every lane of every point's block.
+const PAIRS: usize = CHUNK * B * B;
+
+/// The passing (point, cell) pairs of a chunk: region cell, squared distance, weight and the
+/// point's place in the chunk. Scratch of [`Chunk::grid`], kept between chunks.
+struct Pairs {
+    cell: [usize; PAIRS],
+    r2: [f32; PAIRS],
+    w: [f32; PAIRS],
+    point: [usize; PAIRS],
+}
+
+impl Pairs {
+    fn new() -> Self {
+        Self {
+            cell: [0; PAIRS],
+            r2: [0.0; PAIRS],
+            w: [0.0; PAIRS],
+            point: [0; PAIRS],
         }
     }
 }
@@ -276,6 +305,7 @@ impl Prepared<'_> {
         let has_color = self.has_color;
         let stride = axes.stride[1];
         let mut chunk = Chunk::new();
+        let mut pairs = Pairs::new();
         self.walk(axes, radius, kp.radius2, |range| {
             let Some(points) = self.positions.get(range.start * 2..range.end * 2) else {
                 return;
@@ -295,13 +325,13 @@ impl Prepared<'_> {
                     Ok(Some(b)) => {
                         batch.flush(kp, has_color, out);
                         if chunk.len == CHUNK {
-                            chunk.grid(kp, stride, has_color, out);
+                            chunk.grid(kp, stride, has_color, &mut pairs, out);
                         }
                         chunk.push(b, c);
                     }
                     Ok(None) => {}
                     Err(()) => {
-                        chunk.grid(kp, stride, has_color, out);
+                        chunk.grid(kp, stride, has_color, &mut pairs, out);
                         crate::grid::grid_point(
                             axes,
                             &[x, y],
@@ -316,6 +346,6 @@ impl Prepared<'_> {
                 }
             }
         });
-        chunk.grid(kp, stride, has_color, out);
+        chunk.grid(kp, stride, has_color, &mut pairs, out);
     }
 }

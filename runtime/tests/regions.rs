@@ -76,7 +76,11 @@ fn region2(rng: &mut Rng, max: u32) -> Region {
                 let room = res[a] - r.start[a];
                 // Regions up to 8 cells wide (narrower than a block, or than the widest span) are
                 // as likely as any other.
-                let most = if rng.next().is_multiple_of(2) { 8 } else { room };
+                let most = if rng.next().is_multiple_of(2) {
+                    8
+                } else {
+                    room
+                };
                 r.size[a] = 1 + (rng.next() % room.min(most) as u64) as u32;
             }
         }
