@@ -12,8 +12,9 @@ use crate::kernel::Kernel;
 use crate::point::PointValue;
 use crate::range::RangeValue;
 use crate::splat::{check_target, SplatTarget};
+use crate::stack::Stack;
 use crate::MAX_DIM;
-use otbake_formats::tree::{internal_count, node_at, node_count, Node};
+use otbake_formats::tree::{internal_count, node_count, Node};
 
 /// How many `f32` each buffer of [`PreparedBuffers`] needs (see [`Blend::prepared_sizes`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,6 +89,7 @@ pub struct Prepared<'b> {
 /// `out[j] (+)= w · v_j` for one map: with `first`, `0.0 + w·v` (the bits of `mix`'s first step) in
 /// one pass; entries the stream does not reach (none, for validated archives) become 0, as `mix`
 /// would leave them.
+#[inline(always)]
 fn mix_stream(out: &mut [f32], w: f32, first: bool, values: impl Iterator<Item = f32>) {
     if first {
         let mut len = 0;
@@ -112,6 +114,63 @@ fn mix_decoded(out: &mut [f32], first: bool, add: impl FnOnce(&mut [f32])) {
         out.fill(0.0);
     }
     add(out);
+}
+
+/// The leaves of a prepared blend: the box of their blended points and the sum of their blended
+/// colors, exactly as `Blend` computes them on the fly (the same [`leaf_box`], the same sums).
+struct Leaves<'p> {
+    n: u32,
+    depth: u32,
+    positions: &'p [f32],
+    colors: &'p [f32],
+    with_sums: bool,
+}
+
+impl Leaves<'_> {
+    /// Fills the leaves' entries of `node_boxes` (and of `node_colors` if `with_sums`), visiting
+    /// them in one depth-first walk (every node once, rather than a descent per leaf).
+    fn fill<const D: usize>(&self, node_boxes: &mut [f32], node_colors: &mut [f32]) {
+        let mut stack = Stack::new(Node::root(self.n));
+        while let Some(leaf) = stack.pop() {
+            if leaf.level < self.depth {
+                let (l, r) = leaf.children();
+                stack.push(r);
+                stack.push(l);
+                continue;
+            }
+            let (first, at) = (leaf.start as usize, leaf.index as usize);
+            let range = leaf.range();
+            let points = self.positions.get(range.start * D..range.end * D);
+            let point = |i: usize| {
+                let mut out = [0.0; MAX_DIM];
+                let j = (i - first) * D;
+                if let Some(s) = points.and_then(|p| p.get(j..j + D)) {
+                    out[..D].copy_from_slice(s);
+                }
+                out
+            };
+            let mut lo = [0.0; MAX_DIM];
+            let mut hi = [0.0; MAX_DIM];
+            leaf_box(D, leaf, point, &mut lo, &mut hi);
+            if let Some(b) = node_boxes.get_mut(at * 2 * D..(at + 1) * 2 * D) {
+                b[..D].copy_from_slice(&lo[..D]);
+                b[D..].copy_from_slice(&hi[..D]);
+            }
+            if self.with_sums {
+                let mut sum = [0.0f32; 3];
+                if let Some(c) = self.colors.get(range.start * 3..range.end * 3) {
+                    for c in c.chunks_exact(3) {
+                        for (s, v) in sum.iter_mut().zip(c) {
+                            *s += v;
+                        }
+                    }
+                }
+                if let Some(o) = node_colors.get_mut(at * 3..at * 3 + 3) {
+                    o.copy_from_slice(&sum);
+                }
+            }
+        }
+    }
 }
 
 impl<'a> Blend<'a, '_> {
@@ -186,38 +245,19 @@ impl<'a> Blend<'a, '_> {
                 }
             }
         }
-        // Leaves: the box of their blended points and the sum of their blended colors, exactly as
-        // `Blend` computes them on the fly.
-        let read = |buf: &[f32], i: usize, len: usize| {
-            let mut out = [0.0; MAX_DIM];
-            if let Some(s) = buf.get(i * len..i * len + len) {
-                out[..len].copy_from_slice(s);
-            }
-            out
-        };
         let with_sums = node_colors.len() >= node_count(depth) as usize * 3 && self.has_color;
-        for offset in 0..1u64 << depth {
-            let leaf = node_at(self.n, depth, offset as u32);
-            let at = leaf.index as usize;
-            let mut lo = [0.0; MAX_DIM];
-            let mut hi = [0.0; MAX_DIM];
-            leaf_box(d, leaf, |i| read(positions, i, d), &mut lo, &mut hi);
-            if let Some(b) = node_boxes.get_mut(at * 2 * d..(at + 1) * 2 * d) {
-                b[..d].copy_from_slice(&lo[..d]);
-                b[d..].copy_from_slice(&hi[..d]);
-            }
-            if with_sums {
-                let mut sum = [0.0f32; 3];
-                for i in leaf.range() {
-                    let c = read(colors, i, 3);
-                    for (s, v) in sum.iter_mut().zip(c) {
-                        *s += v;
-                    }
-                }
-                if let Some(o) = node_colors.get_mut(at * 3..at * 3 + 3) {
-                    o.copy_from_slice(&sum);
-                }
-            }
+        let leaves = Leaves {
+            n: self.n,
+            depth,
+            positions,
+            colors,
+            with_sums,
+        };
+        match d {
+            1 => leaves.fill::<1>(node_boxes, node_colors),
+            2 => leaves.fill::<2>(node_boxes, node_colors),
+            3 => leaves.fill::<3>(node_boxes, node_colors),
+            _ => leaves.fill::<4>(node_boxes, node_colors),
         }
         Ok(Prepared {
             dim: self.dim,
