@@ -1,7 +1,10 @@
 //! Rendering 2D blends to images through the runtime: per-pixel point queries or one splat, then
 //! the inputs' composite rule. Both mix the weights once (`Blend::prepare`) and evaluate horizontal
-//! bands in parallel with the runtime's region queries, which equal per-pixel queries bit for bit. Everything here goes through `otbake-runtime`, exactly as an engine
-//! would, so the images are a test of the runtime too.
+//! bands in parallel with the runtime's region queries, which equal per-pixel queries (`query`) or
+//! the whole-image splat (`splat`, within the tolerance `otbake_runtime::SPLAT_TERM_TOLERANCE`
+//! documents of point queries) bit for bit, however the image is banded. Everything here goes
+//! through `otbake-runtime`, exactly as an engine would, so the images are a test of the runtime
+//! too.
 
 use crate::fsio::{read_aligned, IoError};
 use crate::imageio::Rgba;

@@ -79,6 +79,10 @@ impl Prepared<'_> {
     /// Point queries at the centers of every cell of `region`, written to `out` (one value per region
     /// cell, axis 0 fastest): `out[c]` equals `self.point(center of c, kernel)` bit for bit, at the
     /// cost of one traversal for the whole region.
+    ///
+    /// Scratch lives on the stack: tables of cell centers (up to 2048 per axis, 8 KB per axis) and,
+    /// in 2D, about 16 KB of pending points and pairs — some 50 KB at most, within any thread's
+    /// default stack.
     pub fn point_grid(
         &self,
         kernel: Kernel,

@@ -23,6 +23,7 @@ impl Prepared<'_> {
     /// Adds the splat of the blend to the cells of `region` only: `density` (and `color`, three per
     /// cell, if given) hold the region's cells, axis 0 fastest, and receive exactly the bits that
     /// [`Prepared::splat`] (and [`crate::Blend::splat`]) add to those cells of the whole grid.
+    /// Like [`Prepared::point_grid`], it keeps its scratch on the stack (some 40 KB at most).
     pub fn splat_region(
         &self,
         kernel: Kernel,
