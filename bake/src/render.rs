@@ -172,7 +172,9 @@ pub fn render<'a>(
     let band = band_rows(h);
     match s.method {
         Method::Query => {
-            let mut values = vec![PointValue::default(); w * h];
+            let mut values = VALUES.with(|b| std::mem::take(&mut *b.borrow_mut()));
+            // Every value is overwritten by `point_grid`.
+            values.resize(w * h, PointValue::default());
             values
                 .par_chunks_mut(w * band)
                 .enumerate()
@@ -185,10 +187,15 @@ pub fn render<'a>(
                 .par_chunks_mut(4)
                 .zip(&values)
                 .for_each(|(px, v)| px.copy_from_slice(&shade(rule, v.mass, v.color)));
+            VALUES.with(|b| *b.borrow_mut() = values);
         }
         Method::Splat => {
-            let mut density = vec![0.0f32; w * h];
-            let mut color = vec![0.0f32; w * h * 3];
+            let (mut density, mut color) = SPLAT.with(|b| std::mem::take(&mut *b.borrow_mut()));
+            // A splat adds to its buffers: start from zeros.
+            density.clear();
+            density.resize(w * h, 0.0);
+            color.clear();
+            color.resize(w * h * 3, 0.0);
             let has_color = prep.has_color();
             density
                 .par_chunks_mut(w * band)
@@ -208,6 +215,7 @@ pub fn render<'a>(
                     let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
                     px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
                 });
+            SPLAT.with(|b| *b.borrow_mut() = (density, color));
         }
     }
     PREPARED.with(|b| *b.borrow_mut() = store);
@@ -217,6 +225,13 @@ pub fn render<'a>(
 thread_local! {
     /// Prepared-blend buffers reused by [`render`] on this thread.
     static PREPARED: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Point values of the last `query` image rendered on this thread (reused, like `PREPARED`:
+    /// fresh megabytes per image cost page faults on every image).
+    static VALUES: std::cell::RefCell<Vec<PointValue>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Density and color buffers of the last `splat` image rendered on this thread.
+    #[allow(clippy::type_complexity)]
+    static SPLAT: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the
