@@ -157,11 +157,15 @@ pub fn render<'a>(
     let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
     store.resize(sizes.total(), 0.0);
     let prep = blend
-        .prepare(
+        .prepare_with(
             weights,
             sizes
                 .split(&mut store)
                 .expect("sized by PreparedSizes::total"),
+            // Its two halves (geometry, colors) on two threads: the same bits either way.
+            |geometry, color| {
+                rayon::join(geometry, color);
+            },
         )
         .map_err(runtime("--weights"))?;
     let mut res = [1u32; MAX_DIM];
