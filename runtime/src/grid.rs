@@ -14,7 +14,7 @@
 //! likes, into disjoint slices of one buffer, with results independent of the split.
 
 use crate::error::Error;
-use crate::footprint::{Axes, Lanes, Span, LANES};
+use crate::footprint::{Axes, Lanes, Span};
 use crate::kernel::{self, Kernel};
 use crate::point::PointValue;
 use crate::prepared::Prepared;
@@ -243,15 +243,13 @@ pub(crate) fn grid_point<const D: usize>(
         // A wide kernel: every cell of the candidate box, batched.
         return cells(y, axes, &lo, &hi, kp, c, batch, has_color, out);
     };
-    let width = axes.size(0);
-    if spans[0].len <= 4 && width >= 4 {
+    // A block computes the weight of every lane of its rows: worth it where most lanes pass (rows
+    // of four cells, in one or two dimensions); elsewhere only the passing cells go to the batch.
+    if D <= 2 && spans[0].len <= 4 && axes.size(0) >= 4 {
         batch.flush(kp, has_color, out);
         grid_block::<D, 4>(axes, y, c, &spans, kp, has_color, out);
-    } else if width >= LANES {
-        batch.flush(kp, has_color, out);
-        grid_block::<D, LANES>(axes, y, c, &spans, kp, has_color, out);
     } else {
-        cells(y, axes, &lo, &hi, kp, c, batch, has_color, out);
+        span_cells(axes, &spans, kp, c, batch, has_color, out);
     }
 }
 
@@ -374,6 +372,16 @@ impl Batch {
         }
     }
 
+    /// Writes an entry at the end and keeps it if `keep`; the caller made room (`len < BATCH`).
+    #[inline(always)]
+    fn put(&mut self, cell: usize, r2: f32, c: &[f32; 3], keep: bool) {
+        let at = self.len.min(BATCH - 1);
+        self.cell[at] = cell;
+        self.r2[at] = r2;
+        self.color[at] = *c;
+        self.len = at + keep as usize;
+    }
+
     /// Adds every waiting term to its cell (the accumulation of `point::point`) and empties the batch.
     pub(crate) fn flush(&mut self, kp: kernel::Prepared, has_color: bool, out: &mut [PointValue]) {
         if self.len == 0 {
@@ -398,6 +406,57 @@ impl Batch {
     }
 }
 
+/// Every cell of a point's spans within the cutoff, through the batch, from the spans' tabulated
+/// squared distances (the same values, so the same bits as [`cells`]): rows of axis 0 are written
+/// branch-free and kept where they pass (whether a cell passes is unpredictable: a branch on it
+/// costs more than writing it).
+#[allow(clippy::too_many_arguments)]
+fn span_cells<const D: usize>(
+    axes: &Axes<D>,
+    spans: &[Span; D],
+    kp: kernel::Prepared,
+    c: &[f32; 3],
+    batch: &mut Batch,
+    has_color: bool,
+    out: &mut [PointValue],
+) {
+    let s = &spans[0];
+    let row0 = s.sq.get(s.lead..s.lead + s.len).unwrap_or(&[]);
+    let col = s.first() - axes.first[0];
+    let mut idx = [0usize; D];
+    loop {
+        let mut row = col;
+        let mut tails = [0.0f32; D];
+        for k in 1..D {
+            tails[k] = spans[k].sq_at(idx[k]);
+            row += (spans[k].first() + idx[k] - axes.first[k]) * axes.stride[k];
+        }
+        if batch.len + row0.len() > BATCH {
+            batch.flush(kp, has_color, out);
+        }
+        for (i, &s0) in row0.iter().enumerate() {
+            // Summed in axis order from 0, as `point::point` does.
+            let mut r2 = s0;
+            for t in &tails[1..] {
+                r2 += t;
+            }
+            batch.put(row + i, r2, c, r2 <= kp.radius2);
+        }
+        let mut k = 1;
+        loop {
+            if k >= D {
+                return;
+            }
+            if idx[k] + 1 < spans[k].len {
+                idx[k] += 1;
+                break;
+            }
+            idx[k] = 0;
+            k += 1;
+        }
+    }
+}
+
 /// Every cell of the box `lo..=hi` (global indices) within the cutoff, through the batch: the path
 /// of wide kernels and of regions narrower than a block.
 #[allow(clippy::too_many_arguments)]
@@ -412,26 +471,51 @@ fn cells<const D: usize>(
     has_color: bool,
     out: &mut [PointValue],
 ) {
+    // Squared distances along axis 0, once per point when a row fits the batch (then rows are
+    // written branch-free, as in `span_cells`); per cell otherwise (the same values).
+    let len0 = hi[0] + 1 - lo[0];
+    let mut s0 = [0f32; BATCH];
+    let tabulated = len0 <= BATCH;
+    if tabulated {
+        for (j, s) in s0.iter_mut().take(len0).enumerate() {
+            let t = y[0] - axes.center(0, lo[0] + j);
+            *s = t * t;
+        }
+    }
+    let col = lo[0] - axes.first[0];
     // Odometer over axes 1.. (axis 0 is the inner loop).
     let mut idx = *lo;
     loop {
         // Squared distances along axes 1.. and the row's first cell.
         let mut tail = [0f32; D];
-        let mut row = 0usize;
+        let mut row = col;
         for k in 1..D {
             let t = y[k] - axes.center(k, idx[k]);
             tail[k] = t * t;
             row += (idx[k] - axes.first[k]) * axes.stride[k];
         }
-        for i in lo[0]..=hi[0] {
-            let t = y[0] - axes.center(0, i);
-            // Summed in axis order from 0, as `point::point` does.
-            let mut r2 = t * t;
-            for tk in &tail[1..] {
-                r2 += tk;
+        if tabulated {
+            if batch.len + len0 > BATCH {
+                batch.flush(kp, has_color, out);
             }
-            if r2 <= kp.radius2 {
-                batch.push(row + (i - axes.first[0]), r2, c, kp, has_color, out);
+            for (j, &s) in s0.iter().take(len0).enumerate() {
+                // Summed in axis order from 0, as `point::point` does.
+                let mut r2 = s;
+                for tk in &tail[1..] {
+                    r2 += tk;
+                }
+                batch.put(row + j, r2, c, r2 <= kp.radius2);
+            }
+        } else {
+            for i in lo[0]..=hi[0] {
+                let t = y[0] - axes.center(0, i);
+                let mut r2 = t * t;
+                for tk in &tail[1..] {
+                    r2 += tk;
+                }
+                if r2 <= kp.radius2 {
+                    batch.push(row + (i - lo[0]), r2, c, kp, has_color, out);
+                }
             }
         }
         let mut k = 1;

@@ -176,21 +176,15 @@ pub(crate) fn premultiplied(c: [f32; 3], mean_mass: f32) -> [f32; 3] {
     c.map(|c| c * mean_mass)
 }
 
-/// The factors of the splat terms of a point at per-axis squared distances `sq` from a cell (see
-/// the module documentation): `(g_0, P)` with `P = g_1 · (g_2 · (… · (g_{d−1} · scale)))`. The
-/// density term is `g_0 · P`, the term of color channel `ch` is `(g_0 · cm[ch]) · P`.
-#[inline(always)]
-pub(crate) fn splat_factors<const D: usize>(sq: &[f32; D], kp: Prepared, scale: f32) -> (f32, f32) {
-    let mut p = scale;
-    for k in (1..D).rev() {
-        p *= kp.weight(sq[k]);
-    }
-    (kp.weight(sq[0]), p)
-}
+/// Candidate cells per axis whose squared distances and factors [`splat_cells`] tabulates per
+/// point (kernels wider than about 30 cells compute them per cell: the same values).
+const TABLE: usize = 64;
 
 /// Adds a point's splat terms to every cell of the candidate box `lo..=hi` (global indices of the
-/// region `axes`, whose buffers `density` and `color` are) within the cutoff, one cell at a time.
-/// The reference and the path of kernels too wide for the region splat's blocks.
+/// region `axes`, whose buffers `density` and `color` are) within the cutoff, one cell at a time,
+/// from per-axis tables of squared distances and factors (an exponential per candidate cell of
+/// each axis, not per cell of the box). The reference, and the path of kernels too wide for the
+/// region splat's blocks.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn splat_cells<const D: usize>(
     axes: &Axes<D>,
@@ -203,33 +197,69 @@ pub(crate) fn splat_cells<const D: usize>(
     density: &mut [f32],
     mut color: Option<&mut [f32]>,
 ) {
+    let mut sq = [[0.0f32; TABLE]; D];
+    let mut g = [[0.0f32; TABLE]; D];
+    let mut tabulated = [false; D];
+    for k in 0..D {
+        let len = hi[k] + 1 - lo[k];
+        if len <= TABLE {
+            tabulated[k] = true;
+            for (j, s) in sq[k].iter_mut().take(len).enumerate() {
+                let t = y[k] - axes.center(k, lo[k] + j);
+                *s = t * t;
+            }
+            for (g, &s) in g[k].iter_mut().zip(&sq[k]).take(len) {
+                *g = kp.weight(s);
+            }
+        }
+    }
+    // Squared distance and factor of cell `i` of axis `k`.
+    let at = |k: usize, i: usize| -> (f32, f32) {
+        let j = i - lo[k];
+        match (tabulated[k], sq[k].get(j), g[k].get(j)) {
+            (true, Some(&s), Some(&g)) => (s, g),
+            _ => {
+                let t = y[k] - axes.center(k, i);
+                (t * t, kp.weight(t * t))
+            }
+        }
+    };
     let mut idx = *lo;
     loop {
-        let mut sq = [0.0f32; D];
-        let mut r2 = 0.0f32;
-        let mut cell = 0usize;
-        for k in 0..D {
-            let t = y[k] - axes.center(k, idx[k]);
-            sq[k] = t * t;
-            // Summed in axis order, as `point::point` does.
-            r2 += sq[k];
-            cell += (idx[k] - axes.first[k]) * axes.stride[k];
+        // The row (axes 1..): its squared distances, its factor `P = g_1 · (… · (g_{d−1} · scale))`
+        // (multiplied from the last axis down) and its first cell.
+        let mut tails = [0.0f32; D];
+        let mut p = scale;
+        let mut row = 0usize;
+        for k in (1..D).rev() {
+            let (s, g) = at(k, idx[k]);
+            tails[k] = s;
+            p *= g;
+            row += (idx[k] - axes.first[k]) * axes.stride[k];
         }
-        if r2 <= kp.radius2 {
-            let (g0, p) = splat_factors(&sq, kp, scale);
-            if let Some(v) = density.get_mut(cell) {
-                *v += g0 * p;
+        for i in lo[0]..=hi[0] {
+            let (s0, g0) = at(0, i);
+            // Summed in axis order, as `point::point` does.
+            let mut r2 = s0;
+            for t in &tails[1..] {
+                r2 += t;
             }
-            if let Some(px) = color
-                .as_deref_mut()
-                .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
-            {
-                for (v, c) in px.iter_mut().zip(cm) {
-                    *v += (g0 * c) * p;
+            if r2 <= kp.radius2 {
+                let cell = row + (i - axes.first[0]);
+                if let Some(v) = density.get_mut(cell) {
+                    *v += g0 * p;
+                }
+                if let Some(px) = color
+                    .as_deref_mut()
+                    .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
+                {
+                    for (v, c) in px.iter_mut().zip(cm) {
+                        *v += (g0 * c) * p;
+                    }
                 }
             }
         }
-        let mut k = 0;
+        let mut k = 1;
         loop {
             if k >= D {
                 return;

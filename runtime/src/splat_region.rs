@@ -174,7 +174,7 @@ fn splat_block<const D: usize, const B: usize>(
     let mut idx = [0usize; D];
     loop {
         // Summed in axis order from 0, as `point::point` does; the factor of the row's other axes
-        // multiplied from the last axis down, as `splat_factors` does.
+        // multiplied from the last axis down, as `splat::splat_cells` does.
         let mut r2 = s0;
         let mut row = s - axes.first[0];
         let mut p = scale;
