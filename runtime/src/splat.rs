@@ -1,29 +1,9 @@
 //! Splatting: the whole blend reconstructed on a regular grid in one pass over the points, the fast
 //! way to make an image or volume of a blend (paper §5.2, Fig. 6).
 //!
-//! # The splat's kernel weight, and how far it is from a point query's
-//!
-//! A splat counts a point at exactly the cells a point query at the cell's center counts it
-//! (squared distance `r² = Σ_k t_k²`, summed in axis order, `<=` the squared cutoff radius), but
-//! weighs it by the product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
-//! `g_k = kernel::exp(−t_k² / 2σ²)` and `scale = norm / n` (and a color channel `c·mean mass` by
-//! `(g_0 · c·mean mass) · P`), instead of the point query's `exp(−r² / 2σ²)` summed and then
-//! scaled. In exact arithmetic the two are equal (the Gaussian is
-//! separable); the product lets a splat compute `d` small tables of factors per point instead of
-//! one exponential per (point, cell) pair, which is what makes whole-image splats cheap.
-//!
-//! In floats the two differ by rounding only. Each term is within `SPLAT_TERM_TOLERANCE` (1e-5,
-//! relative) of the point query's term (measured worst cases are about 1e-6: `exp` is within 3e-7,
-//! and each of the d + 1 products and the argument roundings adds at most 6e-8 per unit of
-//! exponent up to 4.5), and summing `m` terms in `f32` in the same order adds at most `m·2⁻²⁴`
-//! relative error to each of the two sums, so for a cell that `m` points reach:
-//!
-//! `|splat − point query| <= (SPLAT_TERM_TOLERANCE + 2m·2⁻²⁴) · Σ |terms|`
-//!
-//! for the density and for each color channel (the terms of a color channel are `w · c`). The
-//! property test `runtime/tests/prepared.rs::splats_are_point_queries_within_the_stated_tolerance`
-//! checks exactly this bound. A splat of a region equals the same cells of the full splat bit for
-//! bit, however the grid is split.
+//! The splat weighs a point by per-axis factors instead of the point query's single exponential;
+//! [`SPLAT_TERM_TOLERANCE`] documents the weight and how far it is from a point query. A splat of a
+//! region equals the same cells of the full splat bit for bit, however the grid is split.
 
 use crate::blend::{Blend, Source};
 use crate::error::Error;
@@ -31,8 +11,32 @@ use crate::footprint::Axes;
 use crate::kernel::{Kernel, Prepared};
 use crate::MAX_DIM;
 
-/// Relative bound on the difference between one splat term and the corresponding point-query term
-/// (see the module documentation for the whole statement).
+/// How far a splat may be from point queries: the relative bound on the difference between one
+/// splat term and the corresponding point-query term.
+///
+/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`) counts a point at
+/// exactly the cells a point query at the cell's center counts it (squared distance
+/// `r² = Σ_k t_k²`, summed in axis order, `<=` the squared cutoff radius), but weighs it by a
+/// product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
+/// `g_k = exp(−t_k² / 2σ²)` and `scale = norm / n` (a color channel: `(g_0 · c · mean mass) · P`),
+/// instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact arithmetic the two
+/// are equal (the Gaussian is separable); the product lets a splat compute `d` small tables of
+/// factors per point instead of an exponential per (point, cell) pair, which is what makes
+/// whole-image splats cheap.
+///
+/// In floats they differ by rounding. With `u = 2⁻²⁴` and exponents `|x| <= 4.5` inside the cutoff:
+/// the point query's exponent carries at most `4.5·d·u` of rounding (the `d − 1` additions of `r²`
+/// and the product by `−1/2σ²`), each of the splat's `d` exponents `4.5·u`, every `exp` 3e-7
+/// relative (tested in `kernel.rs`), and the splat's `d` products `u` each: at most 3.1e-6 per term
+/// in 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
+/// Summing `m` terms in `f32`, in the same order, adds at most `m·u` relative error to each of the
+/// two sums, so for a cell that `m` points reach
+///
+/// `|splat − point query| <= (SPLAT_TERM_TOLERANCE + 2m·2⁻²⁴) · Σ |terms|`
+///
+/// for the density and for each color channel. `runtime/tests/regions.rs`
+/// (`splats_are_point_queries_within_the_stated_tolerance`) checks exactly this bound in 1–3
+/// dimensions. Point queries and `Prepared::point_grid` are exact: use them where bits matter.
 pub const SPLAT_TERM_TOLERANCE: f32 = 1e-5;
 
 /// A caller-owned grid over [0,1]^d to splat into. Cell `idx` has its center at `(idx + 0.5) / res`
@@ -49,8 +53,8 @@ pub struct SplatTarget<'b> {
 impl Blend<'_, '_> {
     /// Adds the kernel reconstruction of the blend for `weights` to every cell center of `target`:
     /// each cell gets the density and color a point query at its center returns, within the
-    /// tolerance stated in the [module documentation](self) (the splat weighs each point by a
-    /// product of per-axis Gaussian factors; it counts exactly the points a query counts).
+    /// tolerance [`SPLAT_TERM_TOLERANCE`] states (the splat weighs each point by a product of
+    /// per-axis Gaussian factors; it counts exactly the points a query counts).
     pub fn splat(
         &self,
         weights: &[f32],

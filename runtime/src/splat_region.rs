@@ -1,7 +1,7 @@
 //! The splat of a region of a grid ([`Prepared::splat_region`]): one traversal, then each point
 //! scattered into the few cells it reaches.
 //!
-//! The splat's weight is a product of per-axis factors (see [`crate::splat`]), so a point needs one
+//! The splat's weight is a product of per-axis factors (see [`crate::SPLAT_TERM_TOLERANCE`]), so a point needs one
 //! small vector of factors per axis — `B` cells of axis 0, [`LANES`] cells of every other axis, each
 //! one branch-free loop the compiler vectorizes — and then one multiply per reached cell, added to
 //! `B` consecutive cells of a row at a time. At σ = 0.5 cell a point reaches about 7 cells of a 4×4
