@@ -26,9 +26,10 @@ use crate::MAX_DIM;
 ///
 /// In floats they differ by rounding. With `u = 2⁻²⁴` and exponents `|x| <= 4.5` inside the cutoff:
 /// the point query's exponent carries at most `4.5·d·u` of rounding (the `d − 1` additions of `r²`
-/// and the product by `−1/2σ²`), each of the splat's `d` exponents `4.5·u`, every `exp` 3e-7
-/// relative (tested in `kernel.rs`), and the splat's `d` products `u` each: at most 3.1e-6 per term
-/// in 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
+/// and the product by `−1/2σ²`), the splat's `d` exponents together `4.5·u` (each is rounded once
+/// and they sum to the point query's), every `exp` 3e-7 relative (tested in `kernel.rs`: one for
+/// the query, `d` for the splat), and the splat's `d` products `u` each: at most 3.1e-6 per term in
+/// 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
 /// Summing `m` terms in `f32`, in the same order, adds at most `m·u` relative error to each of the
 /// two sums, so for a cell that `m` points reach
 ///
