@@ -1,12 +1,12 @@
 //! The splat of a region of a grid ([`Prepared::splat_region`]): one traversal, then each point
-//! scattered into the few cells it reaches.
+//! scattered into the few cells it reaches. 2D regions with narrow kernels take `plane.rs`; this is
+//! the path of the other dimensions and of wider kernels.
 //!
-//! The splat's weight is a product of per-axis factors (see [`crate::SPLAT_TERM_TOLERANCE`]), so a point needs one
-//! small vector of factors per axis — `B` cells of axis 0, [`LANES`] cells of every other axis, each
-//! one branch-free loop the compiler vectorizes — and then one multiply per reached cell, added to
-//! `B` consecutive cells of a row at a time. At σ = 0.5 cell a point reaches about 7 cells of a 4×4
-//! block: a few dozen operations per point instead of an exponential and a bounds-checked scatter
-//! per (point, cell) pair.
+//! The splat's weight is a product of per-axis factors (see [`crate::SPLAT_TERM_TOLERANCE`]), so a
+//! point whose spans fit a block needs one small vector of factors per axis — `B` cells of axis 0,
+//! [`LANES`] cells of every other axis, each one branch-free loop the compiler vectorizes — and then
+//! one multiply per reached cell, added to `B` consecutive cells of a row at a time; wider spans
+//! go cell by cell from per-axis tables (`splat::splat_cells`).
 //!
 //! Every cell gets exactly the terms of the reference splat (`splat::splat_cells`: same cutoff test
 //! on the same squared distance, same factors, same products, same order), so a region splat equals
