@@ -7,10 +7,12 @@
 //! test at once), a block of four cells of axis 0 from the first passing cell (moved left at the
 //! region's right end, so it never leaves the region), and one row per passing cell of axis 1.
 //! Points are gathered in chunks of [`CHUNK`] so that the kernel weights of a whole chunk come from
-//! one long vector loop, then each point's rows are added to the cells. Lanes of a row that fail
-//! the full cutoff test add `-0.0` (splat) or `+0.0` (point grid), which leave the sums unchanged
-//! (see [`kept`]), so each cell gets exactly the terms, in the same order, of the per-cell
-//! reference: `point::point` for [`Prepared::point_grid`], `splat::splat_cells` for the splat.
+//! one long vector loop. The splat then adds each point's rows to the cells, lanes that fail the
+//! full cutoff test adding `-0.0`, which leaves every float unchanged (see [`kept`]); the point
+//! grid packs the passing (point, cell) pairs of the chunk first and weighs those only (an exact
+//! exponential each). Either way each cell gets exactly the terms, in the same order, of the
+//! per-cell reference: `point::point` for [`Prepared::point_grid`], `splat::splat_cells` for the
+//! splat.
 //! Points whose span on an axis is wider than four cells (possible only near the window radius)
 //! take the general paths, after the pending chunk.
 
@@ -69,14 +71,13 @@ fn block(axes: &Axes<2>, x: f32, y: f32, radius2: f32) -> Result<Option<Block>, 
     }))
 }
 
-/// `v` if `keep`, else `zero` (`-0.0` or `+0.0`), as bit operations so that rows of lanes
-/// vectorize. `x + (−0.0) = x` for every float `x`; `x + (+0.0) = x` for every `x` but `−0.0`, which
-/// a point grid's sums never are (they start at `+0.0`, and in round-to-nearest a sum is `−0.0`
-/// only if both terms are).
+/// `v` if `keep`, else `−0.0`, as bit operations so that rows of lanes vectorize: `x + (−0.0) = x`
+/// for every float `x` (including `−0.0` and NaN), so a dropped lane adds nothing, even to a caller's
+/// buffer that held `−0.0`.
 #[inline(always)]
-fn kept(keep: bool, v: f32, zero: f32) -> f32 {
+fn kept(keep: bool, v: f32) -> f32 {
     let m = 0u32.wrapping_sub(keep as u32);
-    f32::from_bits((v.to_bits() & m) | (zero.to_bits() & !m))
+    f32::from_bits((v.to_bits() & m) | ((-0.0f32).to_bits() & !m))
 }
 
 /// Blocks of up to [`CHUNK`] points and their colors, in point order.
@@ -140,7 +141,7 @@ impl Chunk {
                 let at = b.at + r * stride;
                 if let Some(d) = density.get_mut(at..at + B) {
                     for ((d, &s), &g) in d.iter_mut().zip(s0).zip(g0) {
-                        *d += kept(s + t <= r2max, g * p, -0.0);
+                        *d += kept(s + t <= r2max, g * p);
                     }
                 }
                 let px = color
@@ -148,7 +149,7 @@ impl Chunk {
                     .and_then(|c| c.get_mut(at * 3..(at + B) * 3));
                 if let Some(px) = px {
                     for ((px, &s), &gc) in px.iter_mut().zip(&s0c).zip(&gc) {
-                        *px += kept(s + t <= r2max, gc * p, -0.0);
+                        *px += kept(s + t <= r2max, gc * p);
                     }
                 }
             }
