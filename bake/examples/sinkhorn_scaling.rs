@@ -1,7 +1,9 @@
 //! Sinkhorn (assignment map) against the exact solver on one shape: the figures of BENCHMARKS.md,
 //! "Sinkhorn: time and accuracy by n".
 //!
-//! `cargo run --release --example sinkhorn_scaling -- N SHAPE [exact]`, e.g. `5000 duck exact`.
+//! `cargo run --release --example sinkhorn_scaling -- N SHAPE [exact] [KEY=VALUE ..]`, e.g.
+//! `5000 duck exact` or `250000 duck tolerance=3e-4 auction_eps=0.0625` (keys: blur_spacing,
+//! tolerance, truncate, auction_eps, scaling).
 //! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
 //! luminance, seed 1). With `exact`, also runs the exact solver and prints the cost ratio and the
 //! L2-UVP of the Sinkhorn map against the exact matching. `OTBAKE_TRACE=1` prints every stage.
@@ -17,7 +19,20 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).map_or(5000, |s| s.parse().expect("N"));
     let shape = args.get(2).map_or("duck", String::as_str);
-    let with_exact = args.get(3).is_some_and(|s| s == "exact");
+    let with_exact = args.iter().skip(3).any(|s| s == "exact");
+    let mut settings = SinkhornSettings::default();
+    for kv in args.iter().skip(3).filter(|s| s.contains('=')) {
+        let (k, v) = kv.split_once('=').expect("KEY=VALUE");
+        let v: f64 = v.parse().expect("a number");
+        match k {
+            "blur_spacing" => settings.blur_spacing = Some(v),
+            "tolerance" => settings.tolerance = v,
+            "truncate" => settings.truncate = v,
+            "auction_eps" => settings.auction_eps = v,
+            "scaling" => settings.scaling = v,
+            _ => panic!("unknown key {k}"),
+        }
+    }
     let path = format!("../shared/data/shapes/{shape}.png");
     let grid = load(std::path::Path::new(&path), DensityChannel::Inverted).expect("shape");
     let target = importance_sample(&grid, n, 1).expect("samples");
@@ -28,11 +43,7 @@ fn main() {
         target: &target,
     };
     let t = Instant::now();
-    let sk = solve(
-        &problem,
-        &SolverSettings::Sinkhorn(SinkhornSettings::default()),
-    )
-    .expect("sinkhorn");
+    let sk = solve(&problem, &SolverSettings::Sinkhorn(settings)).expect("sinkhorn");
     println!(
         "sinkhorn n={n} {shape}: {:.3} s, cost {:.6e}\n  {}",
         t.elapsed().as_secs_f64(),

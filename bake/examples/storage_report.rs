@@ -30,6 +30,7 @@ struct Content {
     proxy_key: [u8; 32],
     composite: u32,
     mean_mass: f32,
+    wrap: otbake_formats::Wrap,
     positions: Vec<f32>,
     colors: Vec<f32>,
 }
@@ -48,6 +49,7 @@ fn content(m: &Map<'_>) -> Content {
         proxy_key: a.proxy_key,
         composite: a.composite.to_native(),
         mean_mass: m.mean_mass(),
+        wrap: m.wrap(),
         positions,
         colors,
     }
@@ -62,6 +64,7 @@ fn encode(c: &Content, s: Storage) -> AlignedVec<16> {
             key: c.key,
             composite: c.composite,
             mean_mass: c.mean_mass,
+            wrap: c.wrap,
             positions: &c.positions,
             colors: &c.colors,
             solver_report: "",

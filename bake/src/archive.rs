@@ -4,7 +4,7 @@ use otbake_formats::proxy::Proxy;
 use otbake_formats::storage::Storage;
 use otbake_formats::tree::{depth, fill_node_boxes, node_count};
 use otbake_formats::write::{encode_map_content, encode_proxy, MapContent, WriteError};
-use otbake_formats::Composite;
+use otbake_formats::{Composite, Wrap};
 use rkyv::util::AlignedVec;
 use std::path::Path;
 
@@ -17,6 +17,8 @@ pub struct ProxyData {
     pub dim: usize,
     /// Leaf size of the tree.
     pub leaf_size: u32,
+    /// The domain (periodic proxies hold points in `[0,1)^d`).
+    pub wrap: Wrap,
     /// `n * dim`, tree order.
     pub positions: Vec<f32>,
     /// Settings, human readable.
@@ -41,6 +43,7 @@ impl ProxyData {
             leaf_size: self.leaf_size,
             depth: d,
             key: self.key,
+            wrap: self.wrap as u32,
             description: &self.description,
             positions: &self.positions,
             node_boxes: &boxes,
@@ -63,6 +66,8 @@ pub struct MapData {
     pub composite: Composite,
     /// Mean of the input's mass channel.
     pub mean_mass: f32,
+    /// The domain; periodic positions are lifts `p + δ` (see [`Wrap`]).
+    pub wrap: Wrap,
     /// `n * dim` mapped positions.
     pub positions: Vec<f32>,
     /// `n * 3` color ratios or empty.
@@ -87,6 +92,7 @@ impl MapData {
                 key: self.key,
                 composite: self.composite as u32,
                 mean_mass: self.mean_mass,
+                wrap: self.wrap,
                 positions: &self.positions,
                 colors: &self.colors,
                 solver_report: &self.solver_report,
@@ -114,10 +120,12 @@ pub fn map_key_on_disk(path: &Path) -> Option<[u8; 32]> {
 pub fn load_proxy_positions(path: &Path, key: &[u8; 32]) -> Option<ProxyData> {
     let bytes = crate::fsio::read_aligned(path).ok()?;
     let p = otbake_formats::open::open_proxy(&bytes).ok()?;
+    let wrap = Wrap::from_code(p.wrap.to_native())?;
     (p.key == *key).then(|| ProxyData {
         key: p.key,
         dim: p.dim.to_native() as usize,
         leaf_size: p.leaf_size.to_native(),
+        wrap,
         positions: p.positions.iter().map(|v| v.to_native()).collect(),
         description: p.description.to_string(),
     })

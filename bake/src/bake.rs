@@ -22,7 +22,8 @@ use crate::sample;
 use crate::solve::{self, Problem};
 use crate::store::{self, Store};
 use crate::volume::voxelize::Fit;
-use otbake_formats::{ArchiveKind, Composite};
+use otbake_formats::{ArchiveKind, Composite, Wrap};
+use rayon::prelude::*;
 use rkyv::util::AlignedVec;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -136,7 +137,8 @@ fn input_identity(
     let digest = index.digest(&spec.path)?;
     key.field("input-file", &digest)
         .debug("density", &spec.density)
-        .field("input-seed", &spec.seed.to_le_bytes());
+        .field("input-seed", &spec.seed.to_le_bytes())
+        .field("wrap", spec.wrap.name().as_bytes());
     if spec.kind.is_brdf() {
         key.field(
             "brdf-resolution",
@@ -177,7 +179,8 @@ pub fn proxy_key(m: &Manifest, dim: usize, index: &mut StatIndex) -> Result<[u8;
     k.field("dim", &(dim as u64).to_le_bytes())
         .field("samples", &(m.proxy.samples as u64).to_le_bytes())
         .field("seed", &m.proxy.seed.to_le_bytes())
-        .field("leaf-size", &m.proxy.leaf_size.to_le_bytes());
+        .field("leaf-size", &m.proxy.leaf_size.to_le_bytes())
+        .field("wrap", m.wrap().name().as_bytes());
     match &m.proxy.source {
         ProxySource::Shape(shape) => {
             k.debug("shape", shape);
@@ -507,8 +510,11 @@ fn describe_proxy(m: &Manifest) -> String {
         ProxySource::Input(i) => format!("input {:?}", m.inputs[*i].name),
     };
     format!(
-        "{src} samples={} seed={} leaf_size={}",
-        m.proxy.samples, m.proxy.seed, m.proxy.leaf_size
+        "{src} samples={} seed={} leaf_size={} wrap={}",
+        m.proxy.samples,
+        m.proxy.seed,
+        m.proxy.leaf_size,
+        m.wrap().name()
     )
 }
 
@@ -523,7 +529,7 @@ fn sample_input(m: &Manifest, spec: &InputSpec, grid: &Grid) -> Result<Vec<f32>,
 }
 
 fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, BakeError> {
-    let points = match &m.proxy.source {
+    let mut points = match &m.proxy.source {
         ProxySource::Shape(shape) => proxy::proxy_points(shape, dim, m.proxy.samples, m.proxy.seed)
             .map_err(|source| BakeError::Sample {
                 what: "proxy".into(),
@@ -534,14 +540,29 @@ fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, Bak
             sample_input(m, spec, &load_input(spec)?)?
         }
     };
+    if m.wrap() == Wrap::Periodic {
+        // On the torus 1 is 0: the uniform proxy's points that round up to 1 in f32 fold back.
+        points.par_iter_mut().for_each(|v| *v = fold(*v));
+    }
     let order = crate::tree::tree_order(&points, dim, m.proxy.leaf_size);
     Ok(ProxyData {
         key,
         dim,
         leaf_size: m.proxy.leaf_size,
+        wrap: m.wrap(),
         positions: crate::tree::permute(&points, dim, &order),
         description: describe_proxy(m),
     })
+}
+
+/// `v` folded onto the circle `[0, 1)`.
+fn fold(v: f32) -> f32 {
+    let f = v - v.floor();
+    if f >= 1.0 {
+        0.0
+    } else {
+        f
+    }
 }
 
 fn build_map(
@@ -568,19 +589,25 @@ fn build_map(
             source: &proxy.positions,
             target: &target,
         };
-        let solution = solve::solve(&problem, &m.solver).map_err(|source| BakeError::Solve {
-            name: spec.name.clone(),
-            source,
-        })?;
+        let solution =
+            solve::solve_in(m.wrap(), &problem, &m.solver).map_err(|source| BakeError::Solve {
+                name: spec.name.clone(),
+                source,
+            })?;
         let r = &solution.report;
         (solution.mapped, r.detail.clone(), r.cost)
     };
     let colors = if grid.ratio.is_empty() || m.storage.colors.is_none() {
         Vec::new()
     } else {
+        // A periodic map's positions are lifts: its color is the texel of the folded point.
+        let wrap = proxy.wrap;
         positions
             .chunks_exact(dim)
-            .flat_map(|p| grid.ratio_at(p))
+            .flat_map(|p| match wrap {
+                Wrap::Clamp => grid.ratio_at(p),
+                Wrap::Periodic => grid.ratio_at(&p.iter().map(|&v| fold(v)).collect::<Vec<_>>()),
+            })
             .collect()
     };
     Ok(MapData {
@@ -590,6 +617,7 @@ fn build_map(
         leaf_size: proxy.leaf_size,
         composite: composite_of(spec.density),
         mean_mass: grid.mean_mass() as f32,
+        wrap: proxy.wrap,
         positions,
         colors,
         solver_report,

@@ -278,9 +278,9 @@ fn configs(kind: SolverKind, n: usize, quick: bool) -> Vec<Config> {
                 let d = SinkhornSettings::default();
                 (vec![d.blur_spacing], vec![d.tolerance])
             } else if quick {
-                (vec![0.5, 1.0, 2.0], vec![1e-2])
+                (vec![Some(0.5), Some(1.0), Some(2.0)], vec![1e-2])
             } else {
-                (vec![0.5, 1.0, 2.0], vec![1e-2, 1e-3])
+                (vec![Some(0.5), Some(1.0), Some(2.0)], vec![1e-2, 1e-3])
             };
             spacings
                 .iter()
@@ -292,7 +292,10 @@ fn configs(kind: SolverKind, n: usize, quick: bool) -> Vec<Config> {
                             tolerance,
                             ..SinkhornSettings::default()
                         }),
-                        label: format!("blur_spacing={blur_spacing} tolerance={tolerance}"),
+                        label: match blur_spacing {
+                            Some(b) => format!("blur_spacing={b} tolerance={tolerance}"),
+                            None => format!("defaults tolerance={tolerance}"),
+                        },
                     })
                 })
                 .collect()

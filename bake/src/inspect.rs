@@ -26,12 +26,13 @@ pub fn describe(bytes: &[u8]) -> String {
         ArchiveKind::Proxy => match otbake_formats::open::open_proxy(&aligned) {
             Ok(p) => {
                 s += &format!(
-                    "proxy          dim={} n={} leaf_size={} depth={} nodes={}\n",
+                    "proxy          dim={} n={} leaf_size={} depth={} nodes={} wrap={}\n",
                     p.dim,
                     p.n,
                     p.leaf_size,
                     p.depth,
-                    p.node_boxes.len() / (2 * p.dim.to_native() as usize)
+                    p.node_boxes.len() / (2 * p.dim.to_native() as usize),
+                    wrap_name(p.wrap.to_native())
                 );
                 s += &format!("key            {}\n", hex(&p.key));
                 s += &format!("settings       {}\n", &*p.description);
@@ -47,8 +48,13 @@ pub fn describe(bytes: &[u8]) -> String {
             Ok(view) => {
                 let m = view.archived();
                 s += &format!(
-                    "map            dim={} n={} depth={} composite={} mean_mass={}\n",
-                    m.dim, m.n, m.depth, m.composite, m.mean_mass
+                    "map            dim={} n={} depth={} composite={} mean_mass={} wrap={}\n",
+                    m.dim,
+                    m.n,
+                    m.depth,
+                    m.composite,
+                    m.mean_mass,
+                    wrap_name(m.wrap.to_native())
                 );
                 s += &format!("key            {}\n", hex(&m.key));
                 s += &format!("proxy key      {}\n", hex(&m.proxy_key));
@@ -104,5 +110,14 @@ pub fn validate(bytes: &[u8]) -> Result<ArchiveKind, FormatError> {
     match kind {
         ArchiveKind::Proxy => otbake_formats::open::open_proxy(&aligned).map(|_| kind),
         ArchiveKind::Map => otbake_formats::open::open_map(&aligned).map(|_| kind),
+    }
+}
+
+/// The manifest's name of a (validated) wrap code; periodic maps store lifts (see `Wrap`).
+fn wrap_name(code: u32) -> &'static str {
+    match otbake_formats::Wrap::from_code(code) {
+        Some(otbake_formats::Wrap::Periodic) => "periodic (positions are lifts p+δ)",
+        Some(otbake_formats::Wrap::Clamp) => "clamp",
+        None => "unknown",
     }
 }

@@ -25,6 +25,7 @@ pub mod progress;
 pub mod proxy;
 pub mod render;
 pub mod sample;
+pub mod seam;
 pub mod solve;
 pub mod store;
 pub mod texture;

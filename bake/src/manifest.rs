@@ -18,13 +18,16 @@
 //! kind = "sinkhorn"             # sinkhorn | exact | sliced
 //! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
 //! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
-//! # blur_spacing = 1.0, scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0
+//! # blur_spacing = 1.5 (1.0 in 3D), scaling = 0.5, tolerance = 3e-3, max_iterations = 2000, truncate = 8.0,
+//! # auction_eps = 0.25
 //! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0
 //!
 //! [[input]]
 //! name = "duck"
 //! path = "data/duck.png"        # relative to this file
 //! density = "inverted"          # luminance (default) | inverted | alpha
+//! wrap = "periodic"             # clamp (default) | periodic: a tileable image on the torus; every
+//!                               # input must agree, and the proxy must be uniform or an input
 //!
 //! [brdf]                        # optional; for .binary (MERL) and .brdf (Cornell) inputs
 //! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
@@ -51,6 +54,7 @@ use crate::solve::{ExactSettings, MapKind, SinkhornSettings, SlicedSettings, Sol
 use crate::volume::vol::VolFit;
 use crate::volume::voxelize::{Fit, MAX_MARGIN};
 use otbake_formats::storage::{Precision, Storage};
+use otbake_formats::Wrap;
 use serde::Deserialize;
 use std::fmt;
 use std::ops::Range;
@@ -151,6 +155,8 @@ pub struct InputSpec {
     pub seed: u64,
     /// How the file becomes a grid beyond `density` (BRDF grid resolution).
     pub options: LoadOptions,
+    /// The domain: `Periodic` for a tileable image (the same for every input of a manifest).
+    pub wrap: Wrap,
 }
 
 impl Manifest {
@@ -162,6 +168,11 @@ impl Manifest {
     /// Archive path of input `name`'s map.
     pub fn map_archive(&self, name: &str) -> PathBuf {
         self.output_dir.join(format!("{name}.otb"))
+    }
+
+    /// The domain every input (and so the proxy and every map) lives in: all inputs agree.
+    pub fn wrap(&self) -> Wrap {
+        self.inputs.first().map_or(Wrap::Clamp, |i| i.wrap)
     }
 
     /// Index of the input called `name`.
@@ -323,6 +334,40 @@ impl Manifest {
                     format!("input {name:?}: file {} does not exist (paths are relative to the manifest)", resolved.display()),
                 ));
             }
+            let wrap = match &input.wrap {
+                Some(w) if *w.get_ref() == RawWrap::Periodic => {
+                    if kind != InputKind::Image {
+                        return Err(at(
+                            Some(w.span()),
+                            format!("input {name:?}: wrap = \"periodic\" is for tileable images; {}D inputs ({}) live in the unit cube with borders: remove `wrap`", kind.dim(), input.path.get_ref()),
+                        ));
+                    }
+                    Wrap::Periodic
+                }
+                _ => Wrap::Clamp,
+            };
+            if let Some(first) = inputs.first() {
+                let first: &InputSpec = first;
+                if first.wrap != wrap {
+                    let span = input.wrap.as_ref().map_or(input.name.span(), |w| w.span());
+                    let said = |w: Wrap, explicit: bool| {
+                        format!(
+                            "wrap = \"{}\"{}",
+                            w.name(),
+                            if explicit { "" } else { " (the default)" }
+                        )
+                    };
+                    return Err(at(
+                        Some(span),
+                        format!(
+                            "input {name:?} has {} but input {:?} has {}: one proxy serves every map of a manifest, so all inputs share one wrap; set wrap = \"periodic\" on every input (each must tile) or on none",
+                            said(wrap, input.wrap.is_some()),
+                            first.name,
+                            said(first.wrap, raw.inputs[0].wrap.is_some()),
+                        ),
+                    ));
+                }
+            }
             inputs.push(InputSpec {
                 name: name.clone(),
                 kind,
@@ -334,6 +379,7 @@ impl Manifest {
                     .unwrap_or_default(),
                 seed: input.seed.unwrap_or(0),
                 options: options.clone(),
+                wrap,
             });
         }
         if common_fit {
@@ -396,6 +442,18 @@ impl Manifest {
             Some(s) => Ok(*s.get_ref()),
             None => Ok(default),
         };
+        let periodic = inputs.first().is_some_and(|i| i.wrap == Wrap::Periodic);
+        if periodic && matches!(kind, ProxyKind::Gaussian | ProxyKind::Spiral) {
+            let name = if kind == ProxyKind::Gaussian {
+                "gaussian"
+            } else {
+                "spiral"
+            };
+            return Err(at(
+                Some(p.kind.span()),
+                format!("proxy kind = \"{name}\" cannot serve periodic inputs: it is concentrated in the middle of the square, so every map must carry mass across most of the tile, towards the half-period cut where the shortest way around the torus is ambiguous (onyx and pebbles: 90x the transport of a uniform proxy); use kind = \"uniform\" (the torus' own measure: maps then move mass only by the texture's variations, and blends stay local) or kind = \"input\""),
+            ));
+        }
         let source = match kind {
             ProxyKind::Gaussian => ProxySource::Shape(ProxyShape::Gaussian {
                 sigma: positive(&p.sigma, "sigma", 1.0 / 6.0)?,
@@ -436,7 +494,7 @@ impl Manifest {
         // Every key belongs to some solver kinds; a key of another kind is an error, not ignored.
         let span = |v: Option<Range<usize>>| v;
         type KeyUse<'k> = (Option<Range<usize>>, &'k str, &'k [SolverKind]);
-        let keys: [KeyUse; 11] = [
+        let keys: [KeyUse; 12] = [
             (
                 span(s.iterations.as_ref().map(|v| v.span())),
                 "iterations",
@@ -490,6 +548,11 @@ impl Manifest {
             (
                 span(s.map.as_ref().map(|v| v.span())),
                 "map",
+                &[SolverKind::Sinkhorn],
+            ),
+            (
+                span(s.auction_eps.as_ref().map(|v| v.span())),
+                "auction_eps",
                 &[SolverKind::Sinkhorn],
             ),
         ];
@@ -563,7 +626,7 @@ impl Manifest {
                     &pos,
                     "a positive multiple of the point spacing",
                 )? {
-                    sk.blur_spacing = v;
+                    sk.blur_spacing = Some(v);
                 }
                 if let Some(v) = real(
                     &s.scaling,
@@ -588,6 +651,14 @@ impl Manifest {
                     "at least 1 (default 8)",
                 )? {
                     sk.truncate = v;
+                }
+                if let Some(v) = real(
+                    &s.auction_eps,
+                    "auction_eps",
+                    &|v| v > 0.0 && v <= 1.0,
+                    "in (0, 1] (the auction's final epsilon as a fraction of Sinkhorn's)",
+                )? {
+                    sk.auction_eps = v;
                 }
                 if let Some(it) = &s.max_iterations {
                     if *it.get_ref() == 0 {
@@ -826,6 +897,7 @@ struct RawSolver {
     max_iterations: Option<Spanned<u32>>,
     truncate: Option<Spanned<f64>>,
     map: Option<Spanned<RawMapKind>>,
+    auction_eps: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -842,6 +914,14 @@ struct RawInput {
     path: Spanned<String>,
     density: Option<Spanned<DensityChannel>>,
     seed: Option<u64>,
+    wrap: Option<Spanned<RawWrap>>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum RawWrap {
+    Clamp,
+    Periodic,
 }
 
 #[cfg(test)]
@@ -1009,5 +1089,85 @@ density = "inverted"
         let e = manifest(&format!("{body}[volume]\nfit = \"crop\"\n")).unwrap_err();
         assert_eq!(e.line, 13, "{e}");
         assert!(e.message.contains("crop"), "{e}");
+    }
+
+    const TEXTURES: &str = r#"
+[output]
+dir = "out"
+[proxy]
+kind = "uniform"
+samples = 1000
+[solver]
+kind = "sliced"
+[[input]]
+name = "onyx"
+path = "../textures/marble_onyx003_ambientcg_1k.jpg"
+wrap = "periodic"
+[[input]]
+name = "slate"
+path = "../textures/marble_slate_texturecan240_gray.png"
+wrap = "periodic"
+"#;
+
+    #[test]
+    fn wrap_defaults_to_clamp_and_periodic_is_per_input() {
+        let m = manifest(GOOD).unwrap();
+        assert_eq!(m.wrap(), Wrap::Clamp);
+        assert_eq!(m.inputs[0].wrap, Wrap::Clamp);
+        let m = manifest(TEXTURES).unwrap();
+        assert_eq!(m.wrap(), Wrap::Periodic);
+        assert!(m.inputs.iter().all(|i| i.wrap == Wrap::Periodic));
+        let m = manifest(
+            &TEXTURES.replace("kind = \"uniform\"", "kind = \"input\"\ninput = \"slate\""),
+        )
+        .unwrap();
+        assert_eq!(m.proxy.source, ProxySource::Input(1));
+        let clamp = TEXTURES.replace("wrap = \"periodic\"", "wrap = \"clamp\"");
+        assert_eq!(manifest(&clamp).unwrap().wrap(), Wrap::Clamp);
+    }
+
+    #[test]
+    fn bad_wraps_are_located_and_say_how_to_fix_them() {
+        // Inputs disagree: the second one's default, then its explicit value.
+        let second = TEXTURES.rfind("wrap = \"periodic\"").unwrap();
+        let mut body = TEXTURES.to_string();
+        body.replace_range(second..second + "wrap = \"periodic\"".len(), "");
+        let e = manifest(&body).unwrap_err();
+        assert_eq!((e.line, e.column), (14, 8), "{e}");
+        assert!(
+            e.message.contains("\"slate\"") && e.message.contains("(the default)"),
+            "{e}"
+        );
+        assert!(e.message.contains("on every input"), "{e}");
+        body.insert_str(second, "wrap = \"clamp\"");
+        let e = manifest(&body).unwrap_err();
+        assert_eq!((e.line, e.column), (16, 8), "{e}");
+        assert!(!e.message.contains("(the default)"), "{e}");
+        // Concentrated proxies cannot serve the torus.
+        for kind in ["gaussian", "spiral"] {
+            let e = manifest(&TEXTURES.replace("\"uniform\"", &format!("\"{kind}\""))).unwrap_err();
+            assert_eq!(e.line, 5, "{e}");
+            assert!(
+                e.message.contains(kind) && e.message.contains("kind = \"uniform\""),
+                "{e}"
+            );
+        }
+        // Only images tile.
+        let vol = GOOD
+            .replace("duck.png", "../volumes/smoke_44x45x53.vol")
+            .replace("density = \"inverted\"", "wrap = \"periodic\"");
+        let e = manifest(&vol).unwrap_err();
+        assert_eq!(e.line, 12, "{e}");
+        assert!(
+            e.message.contains("tileable images") && e.message.contains("remove `wrap`"),
+            "{e}"
+        );
+        // Unknown values name the choices.
+        let e = manifest(&TEXTURES.replacen("\"periodic\"", "\"repeat\"", 1)).unwrap_err();
+        assert_eq!(e.line, 12, "{e}");
+        assert!(
+            e.message.contains("repeat") && e.message.contains("periodic"),
+            "{e}"
+        );
     }
 }

@@ -6,7 +6,9 @@ use crate::render::RenderError;
 use otbake_runtime::{Map, Proxy};
 
 /// `.npy` bytes of an `n × 2d` float32 matrix: row i is proxy point i then its image under the map
-/// of input `name` (as stored: decoded when quantized), in tree order.
+/// of input `name` (as stored: decoded when quantized), in tree order. For a periodic map the image
+/// is its lift `p + δ` (within half a period of the proxy point; fold it modulo 1 for the torus
+/// point), so `image − proxy` is the displacement along the torus geodesic.
 pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
     let pbytes = read_aligned(&m.proxy_archive())?;
     let mbytes = read_aligned(&m.map_archive(name))?;

@@ -158,7 +158,9 @@ pub fn perlin(x: f32, y: f32, seed: u64) -> f32 {
 /// Renders a texture of `width × height` whose pixel (x, y) is the point query of the blend with the
 /// field's weights at the pixel center. The texture repeats in square tiles of `min(width, height)`
 /// pixels (texture coordinates wrap), while the weight field spans the whole image: a wide image is a
-/// strip of tiles whose blend changes along it.
+/// strip of tiles whose blend changes along it. The tiles join without seams when the blend is
+/// periodic (`wrap = "periodic"`: its queries see across the tile's edges); a clamped blend's tiles
+/// show their edges.
 pub fn render_texture<'a>(
     proxy: Proxy<'a>,
     maps: &[Map<'a>],
@@ -219,6 +221,7 @@ pub fn render_lod<'a>(
     let k = maps.len();
     let rule = composite(maps);
     let per_px = repeats / width.min(height) as f32;
+    let periodic = blend.wrap() == otbake_runtime::Wrap::Periodic;
     let mut img = Rgba::filled(width, height, [0.0; 4]);
     img.pixels
         .par_chunks_mut(width * 4)
@@ -234,11 +237,17 @@ pub fn render_lod<'a>(
                 );
                 let (mut mass, mut color) = (0.0f32, [0.0f32; 3]);
                 let lo = [(x as f32 * per_px).fract(), (y as f32 * per_px).fract()];
-                for (ax, ay) in wrapped(lo[0], per_px.min(1.0))
+                // A periodic blend takes footprints across the tile's edges whole; a clamped one
+                // gets them split into pieces inside the tile.
+                let pieces = |lo: f32, len: f32| match periodic {
+                    true => [Some((lo, lo + len)), None],
+                    false => wrapped(lo, len),
+                };
+                for (ax, ay) in pieces(lo[0], per_px.min(1.0))
                     .into_iter()
                     .flatten()
                     .flat_map(|a| {
-                        wrapped(lo[1], per_px.min(1.0))
+                        pieces(lo[1], per_px.min(1.0))
                             .into_iter()
                             .flatten()
                             .map(move |b| (a, b))

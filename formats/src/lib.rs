@@ -54,8 +54,8 @@ pub const MAGIC: [u8; 8] = *b"OTBAKE\0\x01";
 ///
 /// History: 1, every map attribute in `f32`, boxes and color sums of every node; 2, a storage
 /// descriptor ([`storage`]) with quantized and optional attributes, boxes and color sums of internal
-/// nodes only.
-pub const FORMAT_VERSION: u32 = 2;
+/// nodes only; 3, a [`Wrap`] code in proxies and maps (periodic domains for tileable textures).
+pub const FORMAT_VERSION: u32 = 3;
 
 /// rkyv format flags the payload is written with, recorded in the header so that a reader built with
 /// other flags refuses the bytes instead of misreading them. Bit 0: little endian, bit 1: 32-bit
@@ -123,6 +123,53 @@ impl Composite {
         }
     }
 }
+
+/// How the domain `[0,1)^d` treats its borders, recorded in every proxy and map (`wrap` code) so that
+/// a reader never blends or queries periodic data as if it were clamped, or the reverse.
+///
+/// Periodic data live on the torus: opposite faces of the unit cube are the same points. A periodic
+/// proxy's points lie in `[0,1)^d`; a periodic map stores, for proxy point `p`, the *lift*
+/// `p + δ` of its image, `δ` the shortest displacement on the torus (`|δ_k| <= ½`). Lifts make the
+/// blend `Σ w_k (p + δ_k) = p + Σ w_k δ_k` the weighted circular mean around the proxy point (the
+/// torus geodesic), and keep node boxes tight, so blending stays a weighted sum of positions and
+/// boxes; readers fold points back onto the torus when they query. Lifts lie in `[-½, 3/2)^d`;
+/// readers accept [`LIFT_MIN`]`..=`[`LIFT_MAX`] and refuse anything else, so the work of a periodic
+/// query is bounded for any bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+#[repr(u32)]
+pub enum Wrap {
+    /// The unit cube with borders: nothing outside `[0,1]^d` (images, volumes, BRDFs).
+    #[default]
+    Clamp = 0,
+    /// The torus `[0,1)^d`, period 1 on every axis (tileable textures).
+    Periodic = 1,
+}
+
+impl Wrap {
+    /// Decodes the stored code; `None` for codes this build does not know.
+    pub fn from_code(code: u32) -> Option<Self> {
+        match code {
+            0 => Some(Self::Clamp),
+            1 => Some(Self::Periodic),
+            _ => None,
+        }
+    }
+
+    /// The manifest's name of this setting (`"clamp"` or `"periodic"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Clamp => "clamp",
+            Self::Periodic => "periodic",
+        }
+    }
+}
+
+/// Smallest coordinate a periodic map may store (its lifts lie in `[-½, 3/2)`; the margin absorbs
+/// rounding and outward-rounded quantized boxes).
+pub const LIFT_MIN: f32 = -1.0;
+
+/// Largest coordinate a periodic map may store.
+pub const LIFT_MAX: f32 = 2.0;
 
 /// Number of `f32` per node box: `lo[0..d]` then `hi[0..d]`.
 pub const fn box_len(dim: usize) -> usize {

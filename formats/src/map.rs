@@ -1,11 +1,12 @@
 //! The map archive: one input's optimal-transport image of the proxy.
 //!
-//! Layout (rkyv, [`crate::FORMAT_VERSION`] 2). `I = tree::internal_count(depth) = 2^depth − 1` is
+//! Layout (rkyv, [`crate::FORMAT_VERSION`] 3). `I = tree::internal_count(depth) = 2^depth − 1` is
 //! the number of internal nodes; the element type of each bulk field is given by the storage
 //! descriptor ([`crate::storage`]), and every multi-byte value is little endian:
 //!
 //! | field | length | element |
 //! |---|---|---|
+//! | `wrap` | 4 bytes | [`crate::Wrap`] code: 0 clamp, 1 periodic (positions and boxes are lifts in [`crate::LIFT_MIN`]`..=`[`crate::LIFT_MAX`]) |
 //! | `storage` | 4 bytes | descriptor codes (positions, node boxes, colors, node colors) |
 //! | `bounds` | `2·dim` | `f32`: `lo[0..dim]` then `hi[0..dim]` of all mapped points |
 //! | `color_range` | 6, or 0 unless colors are quantized | `f32`: `lo[0..3]` then `hi[0..3]` of the color ratios |
@@ -50,6 +51,9 @@ pub struct Map<'a> {
     pub composite: u32,
     /// Mean of the input's mass channel over its domain (the normalization the density divides out).
     pub mean_mass: f32,
+    /// [`crate::Wrap`] code of the domain (must equal the proxy's). A periodic map stores lifts
+    /// `p + δ` (see [`crate::Wrap`]), not points folded into `[0,1)^d`.
+    pub wrap: u32,
     /// [`crate::storage::Storage`] codes: what is stored below, and at which precision.
     pub storage: [u8; 4],
     /// `2·dim` f32: the box (`lo` then `hi`) of all mapped points; the grid of `u16` node boxes.

@@ -4,7 +4,10 @@ use crate::header::{Header, HEADER_LEN};
 use crate::map::ArchivedMap;
 use crate::proxy::ArchivedProxy;
 use crate::storage::{Precision, Storage};
-use crate::{tree, ArchiveKind, Composite, FormatError, ALIGN, COLOR_CHANNELS, MAX_DIM};
+use crate::{
+    tree, ArchiveKind, Composite, FormatError, Wrap, ALIGN, COLOR_CHANNELS, LIFT_MAX, LIFT_MIN,
+    MAX_DIM,
+};
 use rkyv::rancor::Failure;
 
 /// Checks header, length, alignment and checksum; returns the payload.
@@ -77,6 +80,17 @@ pub fn open_proxy(bytes: &[u8]) -> Result<&ArchivedProxy<'_>, FormatError> {
         all_finite(&p.positions) && all_finite(&p.node_boxes),
         "positions",
     )?;
+    let wrap =
+        Wrap::from_code(p.wrap.to_native()).ok_or(FormatError::Inconsistent { field: "wrap" })?;
+    if wrap == Wrap::Periodic {
+        // Points on the torus are folded into [0,1)^d.
+        check(
+            p.positions
+                .iter()
+                .all(|v| (0.0..1.0).contains(&v.to_native())),
+            "positions",
+        )?;
+    }
     Ok(p)
 }
 
@@ -153,7 +167,29 @@ pub fn open_map(bytes: &[u8]) -> Result<&ArchivedMap<'_>, FormatError> {
         }
     }
     check(all_finite(&m.node_colors), "node_colors")?;
+    let wrap =
+        Wrap::from_code(m.wrap.to_native()).ok_or(FormatError::Inconsistent { field: "wrap" })?;
+    if wrap == Wrap::Periodic {
+        // Lifts lie in [LIFT_MIN, LIFT_MAX]. Checking `bounds` and the f32 fields suffices: every
+        // quantized value decodes between values checked here (u16 boxes on `bounds`, quantized
+        // positions on decoded boxes), so every position and box a reader sees is in range.
+        let lift = |v: f32| (LIFT_MIN..=LIFT_MAX).contains(&v);
+        check(m.bounds.iter().all(|v| lift(v.to_native())), "bounds")?;
+        if storage.positions == Precision::F32 {
+            check(f32s_all(&m.positions, lift), "positions")?;
+        }
+        if storage.node_boxes == Precision::F32 {
+            check(f32s_all(&m.node_boxes, lift), "node_boxes")?;
+        }
+    }
     Ok(m)
+}
+
+/// Whether every little-endian `f32` of `bytes` satisfies `ok`.
+fn f32s_all(bytes: &[u8], ok: impl Fn(f32) -> bool) -> bool {
+    bytes
+        .chunks_exact(4)
+        .all(|c| ok(f32::from_le_bytes([c[0], c[1], c[2], c[3]])))
 }
 
 /// `v` holds `lo[0..k]` then `hi[0..k]`, all finite, `lo <= hi`, with a finite extent if

@@ -19,6 +19,8 @@ pub struct Proxy<'a> {
     pub depth: u32,
     /// blake3 key of everything that determines the proxy; every map stores it.
     pub key: [u8; 32],
+    /// [`crate::Wrap`] code of the domain. Periodic proxies hold points in `[0,1)^d`.
+    pub wrap: u32,
     /// Human-readable proxy settings (for `otbake inspect`), e.g. `gaussian sigma=0.1667 seed=0`.
     #[rkyv(with = InlineAsBox)]
     pub description: &'a str,

@@ -66,6 +66,8 @@ pub struct MapContent<'a> {
     pub composite: u32,
     /// Mean of the input's mass channel.
     pub mean_mass: f32,
+    /// [`crate::Wrap`] of the domain; periodic positions are lifts (see [`crate::Wrap`]).
+    pub wrap: crate::Wrap,
     /// `n·dim` mapped positions, tree order.
     pub positions: &'a [f32],
     /// `n·3` color ratios, or empty.
@@ -210,6 +212,7 @@ pub fn encode_map_content(
         key: c.key,
         composite: c.composite,
         mean_mass: c.mean_mass,
+        wrap: c.wrap as u32,
         storage: storage.to_codes(),
         bounds: &bounds,
         color_range: &color_range,

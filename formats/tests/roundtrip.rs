@@ -9,7 +9,7 @@ use otbake_formats::view::MapView;
 use otbake_formats::write::{
     aligned_copy, encode_map, encode_map_content, encode_proxy, MapContent,
 };
-use otbake_formats::FormatError;
+use otbake_formats::{FormatError, Wrap};
 
 fn content<'a>(pos: &'a [f32], colors: &'a [f32], d: u32) -> MapContent<'a> {
     MapContent {
@@ -19,6 +19,7 @@ fn content<'a>(pos: &'a [f32], colors: &'a [f32], d: u32) -> MapContent<'a> {
         key: [9; 32],
         composite: 0,
         mean_mass: 0.5,
+        wrap: Wrap::Clamp,
         positions: pos,
         colors,
         solver_report: "none",
@@ -48,6 +49,7 @@ fn sample_archives_with(storage: Storage) -> (Vec<u8>, Vec<u8>) {
         leaf_size: 4,
         depth: d,
         key: [7; 32],
+        wrap: 0,
         description: "test",
         positions: &pos,
         node_boxes: &boxes,
@@ -112,13 +114,16 @@ fn damage_is_refused_without_panic() {
             );
         }
     }
-    // An archive of the previous format version (1: f32 only, stored leaf boxes) is refused.
-    let mut v = m.clone();
-    v[8] = 1;
-    assert!(matches!(
-        open_map(&aligned_copy(&v)),
-        Err(FormatError::WrongVersion { found: 1 })
-    ));
+    // Archives of the previous format versions (1: f32 only, stored leaf boxes; 2: no wrap code)
+    // are refused.
+    for old in [1u8, 2] {
+        let mut v = m.clone();
+        v[8] = old;
+        assert!(matches!(
+            open_map(&aligned_copy(&v)),
+            Err(FormatError::WrongVersion { found }) if found == old as u32
+        ));
+    }
     let mut t = m.clone();
     t.extend_from_slice(&[0; 16]);
     assert!(matches!(
@@ -189,6 +194,7 @@ fn inconsistent_storage_fields_are_refused() {
             key: [9; 32],
             composite: 0,
             mean_mass: 0.5,
+            wrap: 0,
             storage,
             bounds,
             color_range,
@@ -312,6 +318,7 @@ fn inconsistent_storage_fields_are_refused() {
         key: [9; 32],
         composite: 0,
         mean_mass: 0.5,
+        wrap: 0,
         storage: [0, 0, 0, 0],
         bounds: &b,
         color_range: &[],
@@ -332,6 +339,7 @@ fn inconsistent_storage_fields_are_refused() {
         key: [9; 32],
         composite: 0,
         mean_mass: 0.5,
+        wrap: 0,
         storage: [0, 0, 0, 0],
         bounds: &wide_bounds,
         color_range: &[],
@@ -344,4 +352,125 @@ fn inconsistent_storage_fields_are_refused() {
     })
     .unwrap();
     assert!(open_map(&ok).is_ok());
+}
+
+/// Periodic archives: the wrap code round trips, unknown codes are refused, and a periodic proxy's
+/// points must lie in [0,1) and a periodic map's lifts in [LIFT_MIN, LIFT_MAX], whatever the storage.
+#[test]
+fn wrap_codes_and_periodic_ranges_are_checked() {
+    let (pos, colors, d) = sample_data();
+    let n = 37u32;
+    let nodes = node_count(d) as usize;
+    let proxy = |pos: &[f32], wrap: u32| {
+        let mut boxes = vec![0.0; nodes * 4];
+        fill_node_boxes(pos, 2, d, &mut boxes);
+        aligned_copy(
+            &encode_proxy(&Proxy {
+                dim: 2,
+                n,
+                leaf_size: 4,
+                depth: d,
+                key: [7; 32],
+                wrap,
+                description: "test",
+                positions: pos,
+                node_boxes: &boxes,
+            })
+            .unwrap(),
+        )
+    };
+    let p = proxy(&pos, 1);
+    assert_eq!(open_proxy(&p).unwrap().wrap, 1);
+    assert_eq!(Wrap::from_code(1), Some(Wrap::Periodic));
+    assert!(matches!(
+        open_proxy(&proxy(&pos, 2)),
+        Err(FormatError::Inconsistent { field: "wrap" })
+    ));
+    let mut outside = pos.clone();
+    outside[5] = 1.0;
+    assert!(open_proxy(&proxy(&outside, 0)).is_ok());
+    assert!(matches!(
+        open_proxy(&proxy(&outside, 1)),
+        Err(FormatError::Inconsistent { field: "positions" })
+    ));
+
+    // Lifts of torus points: up to half a period outside the unit square is fine.
+    let lifts: Vec<f32> = pos
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| v + [-0.49, 0.49, 0.0][i % 3])
+        .collect();
+    for storage in [Storage::FULL, Storage::COMPACT] {
+        let map = |pos: &[f32], wrap: Wrap| {
+            aligned_copy(
+                &encode_map_content(
+                    &MapContent {
+                        wrap,
+                        ..content(pos, &colors, d)
+                    },
+                    storage,
+                )
+                .unwrap(),
+            )
+        };
+        let m = map(&lifts, Wrap::Periodic);
+        let opened = open_map(&m).unwrap();
+        assert_eq!(opened.wrap, Wrap::Periodic as u32);
+        let mut far = lifts.clone();
+        far[7] = 2.5;
+        assert!(open_map(&map(&far, Wrap::Clamp)).is_ok(), "{storage:?}");
+        assert!(
+            matches!(
+                open_map(&map(&far, Wrap::Periodic)),
+                Err(FormatError::Inconsistent { .. })
+            ),
+            "{storage:?}"
+        );
+        far[7] = -1.5;
+        assert!(
+            matches!(
+                open_map(&map(&far, Wrap::Periodic)),
+                Err(FormatError::Inconsistent { .. })
+            ),
+            "{storage:?}"
+        );
+    }
+    // An unknown wrap code in a forged map.
+    let posb: Vec<u8> = pos.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let internal = internal_count(d) as usize;
+    let mut boxes = vec![0.0f32; nodes * 4];
+    fill_node_boxes(&pos, 2, d, &mut boxes);
+    let boxb: Vec<u8> = boxes[..internal * 4]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    for (wrap, ok) in [(0u32, true), (1, true), (7, false), (u32::MAX, false)] {
+        let bytes = encode_map(&Map {
+            dim: 2,
+            n,
+            depth: d,
+            proxy_key: [7; 32],
+            key: [9; 32],
+            composite: 0,
+            mean_mass: 0.5,
+            wrap,
+            storage: [0, 0, 0, 0],
+            bounds: &boxes[..4],
+            color_range: &[],
+            positions: &posb,
+            colors: &[],
+            node_boxes: &boxb,
+            node_colors: &[],
+            solver_report: "",
+            transport_cost: 0.0,
+        })
+        .unwrap();
+        match open_map(&bytes) {
+            Ok(_) => assert!(ok, "wrap code {wrap} opened"),
+            Err(e) => assert!(
+                !ok && e == FormatError::Inconsistent { field: "wrap" },
+                "{wrap}: {e}"
+            ),
+        }
+    }
 }

@@ -7,7 +7,7 @@ use otbake_formats::open::open_proxy;
 use otbake_formats::proxy::ArchivedProxy;
 use otbake_formats::storage::Storage;
 use otbake_formats::view::MapView;
-use otbake_formats::Composite;
+use otbake_formats::{Composite, Wrap};
 
 /// An opened proxy archive. Opening checks header, checksum, rkyv validity and sizes once, so
 /// queries never re-validate.
@@ -42,6 +42,12 @@ impl<'a> Proxy<'a> {
     /// The proxy's key, which every map of it stores.
     pub fn key(&self) -> [u8; 32] {
         self.archived.key
+    }
+
+    /// How the domain treats its borders (periodic proxies hold points in `[0,1)^d`).
+    pub fn wrap(&self) -> Wrap {
+        // open_proxy validated the code; Clamp is unreachable but keeps this panic-free.
+        Wrap::from_code(self.archived.wrap.to_native()).unwrap_or(Wrap::Clamp)
     }
 
     /// Proxy point `i` (tree order); unused coordinates are 0. `None` past the end.
@@ -83,6 +89,13 @@ impl<'a> Map<'a> {
     /// How the input's color is displayed.
     pub fn composite(&self) -> Composite {
         self.composite
+    }
+
+    /// How the domain treats its borders. A periodic map stores lifts `p + δ` of its points (see
+    /// [`Wrap`]), which [`Map::position`] returns as stored.
+    pub fn wrap(&self) -> Wrap {
+        // open_map validated the code; Clamp is unreachable but keeps this panic-free.
+        Wrap::from_code(self.view.archived().wrap.to_native()).unwrap_or(Wrap::Clamp)
     }
 
     /// Mean of the input's mass channel.

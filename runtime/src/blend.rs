@@ -12,6 +12,7 @@ use crate::error::Error;
 use crate::MAX_DIM;
 use otbake_formats::tree::Node;
 use otbake_formats::view::Grid;
+use otbake_formats::Wrap;
 
 /// How far the weights may sum from 1.
 pub const WEIGHT_SUM_TOLERANCE: f32 = 1e-4;
@@ -38,6 +39,8 @@ pub struct Blend<'a, 'm> {
     pub(crate) has_color: bool,
     /// The first map without node color sums when the blend has color (range queries refuse).
     pub(crate) missing_node_colors: Option<usize>,
+    /// The domain: periodic blends answer queries on the torus ([`crate::periodic`]).
+    pub(crate) wrap: Wrap,
 }
 
 /// `Σ w_k v_k` in a fixed order. Every blended quantity goes through this one function.
@@ -127,6 +130,9 @@ impl<'a, 'm> Blend<'a, 'm> {
                     field: "depth",
                 });
             }
+            if m.wrap() != proxy.wrap() {
+                return Err(Error::WrapMismatch { map: i });
+            }
         }
         let has_color = maps.iter().all(|m| m.has_color());
         Ok(Self {
@@ -140,7 +146,14 @@ impl<'a, 'm> Blend<'a, 'm> {
             } else {
                 None
             },
+            wrap: proxy.wrap(),
         })
+    }
+
+    /// How the domain treats its borders: a periodic blend lives on the torus `[0,1)^d`, and every
+    /// query sees points across the borders (see [`Wrap`]).
+    pub fn wrap(&self) -> Wrap {
+        self.wrap
     }
 
     /// Number of maps.
@@ -321,10 +334,11 @@ impl<'a, 'm> Blend<'a, 'm> {
     }
 
     /// The `index`-th point of the blend: a sample of the barycenter distribution (each point carries
-    /// mass 1/n), for importance sampling.
+    /// mass 1/n), for importance sampling. A periodic blend's samples are folded into `[0,1)^d`.
     pub fn sample(&self, weights: &[f32], index: u32) -> Result<Sample, Error> {
         self.check_weights(weights)?;
-        sample(&self.weighted(weights), index)
+        let s = sample(&self.weighted(weights), index)?;
+        Ok(crate::periodic::fold_sample(self.wrap, s))
     }
 }
 

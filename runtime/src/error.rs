@@ -20,6 +20,18 @@ pub enum Error {
         /// Which size.
         field: &'static str,
     },
+    /// Map `map` and the proxy disagree on the domain's [`otbake_formats::Wrap`] (one is periodic,
+    /// the other not).
+    WrapMismatch {
+        /// Index of the map.
+        map: usize,
+    },
+    /// A kernel query on a periodic blend reaches farther than one period (`3σ > 1`): the kernel
+    /// would wrap around the torus onto itself, and a query would need unboundedly many images.
+    PeriodicKernel {
+        /// The kernel's reach `3σ`.
+        radius: f32,
+    },
     /// `Blend::new` got no maps.
     NoMaps,
     /// Wrong number of weights.
@@ -96,6 +108,14 @@ impl fmt::Display for Error {
             Self::ShapeMismatch { map, field } => {
                 write!(f, "map {map} has another `{field}` than the proxy: it belongs to another bake")
             }
+            Self::WrapMismatch { map } => write!(
+                f,
+                "map {map} and the proxy disagree on wrap (periodic or clamp): bake every map of a blend from one manifest"
+            ),
+            Self::PeriodicKernel { radius } => write!(
+                f,
+                "the kernel reaches 3 sigma = {radius} but a periodic blend allows at most one period (1.0): lower sigma"
+            ),
             Self::NoMaps => write!(f, "a blend needs at least one map"),
             Self::WeightCount { expected, found } => {
                 write!(f, "{found} weights given for {expected} maps: give one weight per input")

@@ -10,17 +10,23 @@
 //! rounding is monotone, so the computed distance of a point to a cell center is never smaller than
 //! the computed distance of its node's box to the box of centers.
 //!
+//! On a periodic blend the walk runs once per image of the blend that can reach the region
+//! (`periodic::region_shifts`, in the fixed order every periodic query uses), over points and boxes
+//! moved by that image's shift: the shift loop lives in [`Prepared::walk`] only, so every region
+//! path (the point grid, the splat, their 2D fast paths in `plane.rs`) wraps the same way, and
+//! each cell still gets the per-cell query's terms in its order.
+//!
 //! Regions let a caller split an image into bands or tiles and render them on as many threads as it
 //! likes, into disjoint slices of one buffer, with results independent of the split.
 
 use crate::error::Error;
 use crate::footprint::{Axes, Lanes, Span};
 use crate::kernel::{self, Kernel};
+use crate::periodic::Shifts;
 use crate::point::PointValue;
 use crate::prepared::Prepared;
 use crate::stack::Stack;
 use crate::MAX_DIM;
-use core::ops::Range;
 use otbake_formats::tree::Node;
 
 /// A box of cells of a regular grid over [0,1]^d whose cell `idx` has its center at
@@ -97,25 +103,28 @@ impl Prepared<'_> {
                 found: out.len(),
             });
         }
+        // One traversal per image of a periodic blend that can reach the region (the blend
+        // itself otherwise), all in `walk`.
+        let shifts = crate::periodic::region_shifts(self.wrap, self, &region, kernel)?;
         out.fill(PointValue::default());
         if cells == 0 {
             return Ok(());
         }
         let radius = kernel.sigma * kernel::TRUNCATION;
         match self.dim {
-            1 => self.grid_sums(kp, radius, &region.axes::<1>(), out),
+            1 => self.grid_sums(kp, radius, &region.axes::<1>(), shifts, out),
             2 => {
                 let axes = region.axes::<2>();
                 if crate::plane::fits(&axes, radius) {
                     let mut batch = Batch::new();
-                    self.grid_plane(kp, radius, &axes, &mut batch, out);
+                    self.grid_plane(kp, radius, &axes, shifts, &mut batch, out);
                     batch.flush(kp, self.has_color, out);
                 } else {
-                    self.grid_sums(kp, radius, &axes, out)
+                    self.grid_sums(kp, radius, &axes, shifts, out)
                 }
             }
-            3 => self.grid_sums(kp, radius, &region.axes::<3>(), out),
-            _ => self.grid_sums(kp, radius, &region.axes::<4>(), out),
+            3 => self.grid_sums(kp, radius, &region.axes::<3>(), shifts, out),
+            _ => self.grid_sums(kp, radius, &region.axes::<4>(), shifts, out),
         }
         // The end of `point::point`, per cell.
         let scale = kp.norm / self.n as f32;
@@ -131,47 +140,78 @@ impl Prepared<'_> {
         Ok(())
     }
 
-    /// Calls `f` with consecutive ranges of point indices, in increasing order, that together hold
-    /// every point whose node box is within the cutoff of the region's box of centers (and maybe
-    /// more: a subtree whose box lies inside that box grown by the radius is handed over whole,
-    /// its points being contiguous, instead of being walked down to its leaves — its points are
-    /// near the region anyway, and a point beyond the cutoff adds nothing).
+    /// Calls `f(y, c)` with every point `y` (and its color ratio `c`, zeros without color) whose
+    /// node box is within the cutoff of the region's box of centers, in index order, once per image
+    /// of the blend in `shifts` (in their order): the image moved by `−m` sees `y − m` and boxes
+    /// moved by `−m`. A clamped blend passes `Shifts::zero()` (`y − 0 = y`, so the one image is
+    /// the blend itself); a periodic one `periodic::region_shifts`, so every region path runs the
+    /// shifts from here and adds each cell's terms in the order of the per-cell point query
+    /// (shift by shift, points in index order).
+    ///
+    /// `f` may see more points than reach the region: a subtree whose (moved) box lies inside the
+    /// box of centers grown by the radius is handed over whole, its points being contiguous,
+    /// instead of being walked down to its leaves — its points are near the region anyway, and a
+    /// point beyond the cutoff adds nothing. Pruning a node is exact: its moved box contains its
+    /// moved points (rounding is monotone).
     pub(crate) fn walk<const D: usize>(
         &self,
         axes: &Axes<D>,
         radius: f32,
         radius2: f32,
-        mut f: impl FnMut(Range<usize>),
+        shifts: Shifts,
+        mut f: impl FnMut(&[f32; D], &[f32; 3]),
     ) {
         let clo: [f32; D] = core::array::from_fn(|k| axes.center(k, axes.first[k]));
         let chi: [f32; D] = core::array::from_fn(|k| axes.center(k, axes.last[k]));
-        let mut stack = Stack::new(Node::root(self.n));
-        while let Some(node) = stack.pop() {
-            if node.count == 0 {
-                continue;
+        for shift in shifts {
+            let m: [f32; D] = core::array::from_fn(|k| shift[k]);
+            let mut stack = Stack::new(Node::root(self.n));
+            while let Some(node) = stack.pop() {
+                if node.count == 0 {
+                    continue;
+                }
+                let base = node.index as usize * 2 * D;
+                let Some(b) = self.node_boxes.get(base..base + 2 * D) else {
+                    continue;
+                };
+                // Distance from the moved box to the box of cell centers, summed like
+                // `box_distance2`.
+                let mut d2 = 0.0f32;
+                let mut inside = true;
+                for k in 0..D {
+                    let (lo, hi) = (b[k] - m[k], b[D + k] - m[k]);
+                    let gap = (lo - chi[k]).max(clo[k] - hi).max(0.0);
+                    d2 += gap * gap;
+                    inside &= lo >= clo[k] - radius && hi <= chi[k] + radius;
+                }
+                if d2 > radius2 {
+                    continue;
+                }
+                if node.level < self.depth && !inside {
+                    let (l, r) = node.children();
+                    stack.push(r);
+                    stack.push(l);
+                    continue;
+                }
+                let range = node.range();
+                let Some(points) = self.positions.get(range.start * D..range.end * D) else {
+                    continue;
+                };
+                let colors = if self.has_color {
+                    self.colors.get(range.start * 3..range.end * 3)
+                } else {
+                    None
+                };
+                for (j, y) in points.chunks_exact(D).enumerate() {
+                    let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
+                        Some(&[r, g, b]) => [r, g, b],
+                        _ => [0.0; 3],
+                    };
+                    // The point in the image being visited, as `periodic::Shifted` moves it.
+                    let y: [f32; D] = core::array::from_fn(|k| y[k] - m[k]);
+                    f(&y, &c);
+                }
             }
-            let base = node.index as usize * 2 * D;
-            let Some(b) = self.node_boxes.get(base..base + 2 * D) else {
-                continue;
-            };
-            // Distance from the node's box to the box of cell centers, summed like `box_distance2`.
-            let mut d2 = 0.0f32;
-            let mut inside = true;
-            for k in 0..D {
-                let gap = (b[k] - chi[k]).max(clo[k] - b[D + k]).max(0.0);
-                d2 += gap * gap;
-                inside &= b[k] >= clo[k] - radius && b[D + k] <= chi[k] + radius;
-            }
-            if d2 > radius2 {
-                continue;
-            }
-            if node.level < self.depth && !inside {
-                let (l, r) = node.children();
-                stack.push(r);
-                stack.push(l);
-                continue;
-            }
-            f(node.range());
         }
     }
 
@@ -181,27 +221,13 @@ impl Prepared<'_> {
         kp: kernel::Prepared,
         radius: f32,
         axes: &Axes<D>,
+        shifts: Shifts,
         out: &mut [PointValue],
     ) {
         let has_color = self.has_color;
         let mut batch = Batch::new();
-        self.walk(axes, radius, kp.radius2, |range| {
-            let Some(points) = self.positions.get(range.start * D..range.end * D) else {
-                return;
-            };
-            let colors = if has_color {
-                self.colors.get(range.start * 3..range.end * 3)
-            } else {
-                None
-            };
-            for (j, y) in points.chunks_exact(D).enumerate() {
-                let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
-                    Some(&[r, g, b]) => [r, g, b],
-                    _ => [0.0; 3],
-                };
-                let y: [f32; D] = core::array::from_fn(|k| y[k]);
-                grid_point(axes, &y, &c, kp, radius, has_color, &mut batch, out);
-            }
+        self.walk(axes, radius, kp.radius2, shifts, |y, c| {
+            grid_point(axes, y, c, kp, radius, has_color, &mut batch, out);
         });
         batch.flush(kp, has_color, out);
     }

@@ -33,10 +33,11 @@
 //! #     let mut boxes = vec![0.0; tree::node_count(d) as usize * 4];
 //! #     tree::fill_node_boxes(&pos, 2, d, &mut boxes);
 //! #     let p = write::encode_proxy(&ProxyData { dim: 2, n: 2, leaf_size: 1, depth: d, key: [1; 32],
-//! #         description: "", positions: &pos, node_boxes: &boxes }).unwrap();
+//! #         wrap: 0, description: "", positions: &pos, node_boxes: &boxes }).unwrap();
 //! #     let map = |pos: &[f32]| {
 //! #         write::encode_map_content(&write::MapContent { dim: 2, depth: d, proxy_key: [1; 32],
-//! #             key: [2; 32], composite: 0, mean_mass: 0.5, positions: pos, colors: &[],
+//! #             key: [2; 32], composite: 0, mean_mass: 0.5, wrap: otbake_runtime::Wrap::Clamp,
+//! #             positions: pos, colors: &[],
 //! #             solver_report: "", transport_cost: 0.0 }, otbake_formats::storage::Storage::FULL).unwrap()
 //! #     };
 //! #     (p, map(&[0.1, 0.1, 0.3, 0.3]), map(&[0.5, 0.5, 0.9, 0.9]))
@@ -77,6 +78,7 @@ mod error;
 mod footprint;
 mod grid;
 mod kernel;
+mod periodic;
 mod plane;
 mod point;
 mod prepared;
@@ -91,7 +93,7 @@ pub use error::Error;
 pub use grid::Region;
 pub use kernel::Kernel;
 pub use otbake_formats::storage::{Precision, Storage};
-pub use otbake_formats::{Composite, MAX_DIM};
+pub use otbake_formats::{Composite, Wrap, MAX_DIM};
 pub use point::PointValue;
 pub use prepared::{Prepared, PreparedBuffers, PreparedSizes};
 pub use range::RangeValue;

@@ -19,6 +19,7 @@
 use crate::footprint::Axes;
 use crate::grid::Batch;
 use crate::kernel;
+use crate::periodic::Shifts;
 use crate::point::PointValue;
 use crate::prepared::Prepared;
 
@@ -241,51 +242,36 @@ impl Prepared<'_> {
         kp: kernel::Prepared,
         radius: f32,
         axes: &Axes<2>,
+        shifts: Shifts,
         density: &mut [f32],
         mut color: Option<&mut [f32]>,
     ) {
         let scale = kp.norm / self.n as f32;
         let mean_mass = self.mean_mass;
-        let has_color = self.has_color;
         let stride = axes.stride[1];
         let mut chunk = Chunk::new();
-        self.walk(axes, radius, kp.radius2, |range| {
-            let Some(points) = self.positions.get(range.start * 2..range.end * 2) else {
-                return;
-            };
-            let colors = if has_color {
-                self.colors.get(range.start * 3..range.end * 3)
-            } else {
-                None
-            };
-            for (j, p) in points.chunks_exact(2).enumerate() {
-                let (x, y) = (p[0], p[1]);
-                let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
-                    Some(&[r, g, b]) => [r, g, b],
-                    _ => [0.0; 3],
-                };
-                let cm = crate::splat::premultiplied(c, mean_mass);
-                match block(axes, x, y, kp.radius2) {
-                    Ok(Some(b)) => {
-                        if chunk.len == CHUNK {
-                            chunk.splat(kp, scale, stride, density, color.as_deref_mut());
-                        }
-                        chunk.push(b, cm);
-                    }
-                    Ok(None) => {}
-                    Err(()) => {
+        self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| {
+            let cm = crate::splat::premultiplied(c, mean_mass);
+            match block(axes, x, y, kp.radius2) {
+                Ok(Some(b)) => {
+                    if chunk.len == CHUNK {
                         chunk.splat(kp, scale, stride, density, color.as_deref_mut());
-                        crate::splat_region::splat_point(
-                            axes,
-                            &[x, y],
-                            &cm,
-                            kp,
-                            radius,
-                            scale,
-                            density,
-                            color.as_deref_mut(),
-                        );
                     }
+                    chunk.push(b, cm);
+                }
+                Ok(None) => {}
+                Err(()) => {
+                    chunk.splat(kp, scale, stride, density, color.as_deref_mut());
+                    crate::splat_region::splat_point(
+                        axes,
+                        &[x, y],
+                        &cm,
+                        kp,
+                        radius,
+                        scale,
+                        density,
+                        color.as_deref_mut(),
+                    );
                 }
             }
         });
@@ -300,6 +286,7 @@ impl Prepared<'_> {
         kp: kernel::Prepared,
         radius: f32,
         axes: &Axes<2>,
+        shifts: Shifts,
         batch: &mut Batch,
         out: &mut [PointValue],
     ) {
@@ -307,44 +294,20 @@ impl Prepared<'_> {
         let stride = axes.stride[1];
         let mut chunk = Chunk::new();
         let mut pairs = Pairs::new();
-        self.walk(axes, radius, kp.radius2, |range| {
-            let Some(points) = self.positions.get(range.start * 2..range.end * 2) else {
-                return;
-            };
-            let colors = if has_color {
-                self.colors.get(range.start * 3..range.end * 3)
-            } else {
-                None
-            };
-            for (j, p) in points.chunks_exact(2).enumerate() {
-                let (x, y) = (p[0], p[1]);
-                let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
-                    Some(&[r, g, b]) => [r, g, b],
-                    _ => [0.0; 3],
-                };
-                match block(axes, x, y, kp.radius2) {
-                    Ok(Some(b)) => {
-                        batch.flush(kp, has_color, out);
-                        if chunk.len == CHUNK {
-                            chunk.grid(kp, stride, has_color, &mut pairs, out);
-                        }
-                        chunk.push(b, c);
-                    }
-                    Ok(None) => {}
-                    Err(()) => {
-                        chunk.grid(kp, stride, has_color, &mut pairs, out);
-                        crate::grid::grid_point(
-                            axes,
-                            &[x, y],
-                            &c,
-                            kp,
-                            radius,
-                            has_color,
-                            batch,
-                            out,
-                        );
-                    }
+        self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| match block(
+            axes, x, y, kp.radius2,
+        ) {
+            Ok(Some(b)) => {
+                batch.flush(kp, has_color, out);
+                if chunk.len == CHUNK {
+                    chunk.grid(kp, stride, has_color, &mut pairs, out);
                 }
+                chunk.push(b, c);
+            }
+            Ok(None) => {}
+            Err(()) => {
+                chunk.grid(kp, stride, has_color, &mut pairs, out);
+                crate::grid::grid_point(axes, &[x, y], &c, kp, radius, has_color, batch, out);
             }
         });
         chunk.grid(kp, stride, has_color, &mut pairs, out);

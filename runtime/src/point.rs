@@ -34,21 +34,28 @@ impl Blend<'_, '_> {
     /// Density, mass and color of the blend for `weights` at `p` (`dim()` coordinates in [0,1]).
     ///
     /// Visits only nodes whose blended box lies within 3σ of `p`. Kernel sums are accumulated in
-    /// `f32`: a query sums at most a few hundred terms of similar size.
+    /// `f32`: a query sums at most a few hundred terms of similar size. On a periodic blend `p` is
+    /// a point of the torus (any coordinates; they are folded into `[0,1)`) and the kernel wraps
+    /// around it ([`crate::periodic`]).
     pub fn point(&self, weights: &[f32], p: &[f32], kernel: Kernel) -> Result<PointValue, Error> {
         self.check_weights(weights)?;
         let q = self.point_arg(p)?;
         let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        Ok(point(&self.weighted(weights), &q, kp))
+        crate::periodic::point(self.wrap, &self.weighted(weights), &q, kernel, kp)
     }
 }
 
-/// A point query at `q` (finite, `dim` coordinates used) with a prepared kernel.
-pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointValue {
+/// Kernel sums at `q` (finite, `dim` coordinates used): `sum` += Σ weights, `csum` += Σ weight ×
+/// color ratio, over the points within the kernel's reach, in point-index order.
+pub(crate) fn accumulate(
+    s: &impl Source,
+    q: &[f32; MAX_DIM],
+    kp: Prepared,
+    sum: &mut f32,
+    csum: &mut [f32; 3],
+) {
     let d = s.dim();
     let q = &q[..d];
-    let mut sum = 0.0f32;
-    let mut csum = [0.0f32; 3];
     let mut leaf = s.leaf_state();
     let mut stack = Stack::new(Node::root(s.n()));
     while let Some(node) = stack.pop() {
@@ -69,7 +76,7 @@ pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointV
                 }
                 if r2 <= kp.radius2 {
                     let w = kp.weight(r2);
-                    sum += w;
+                    *sum += w;
                     if s.has_color() {
                         let c = s.color(i);
                         for (a, c) in csum.iter_mut().zip(c) {
@@ -84,6 +91,10 @@ pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointV
             stack.push(l);
         }
     }
+}
+
+/// The point value of kernel sums `sum`, `csum` ([`accumulate`]).
+pub(crate) fn finish(s: &impl Source, kp: Prepared, sum: f32, csum: [f32; 3]) -> PointValue {
     let scale = kp.norm / s.n() as f32;
     let mean_mass = s.mean_mass();
     let density = sum * scale;
@@ -92,4 +103,12 @@ pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointV
         mass: density * mean_mass,
         color: csum.map(|c| c * scale * mean_mass),
     }
+}
+
+/// A point query at `q` (finite, `dim` coordinates used) with a prepared kernel.
+pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointValue {
+    let mut sum = 0.0f32;
+    let mut csum = [0.0f32; 3];
+    accumulate(s, q, kp, &mut sum, &mut csum);
+    finish(s, kp, sum, csum)
 }

@@ -15,6 +15,7 @@ use crate::splat::{check_target, SplatTarget};
 use crate::stack::Stack;
 use crate::MAX_DIM;
 use otbake_formats::tree::{internal_count, node_count, Node};
+use otbake_formats::Wrap;
 
 /// How many `f32` each buffer of [`PreparedBuffers`] needs (see [`Blend::prepared_sizes`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,6 +81,8 @@ pub struct Prepared<'b> {
     pub(crate) has_color: bool,
     pub(crate) missing_node_colors: Option<usize>,
     pub(crate) mean_mass: f32,
+    /// The domain; a periodic blend's queries see every image of its points ([`crate::periodic`]).
+    pub(crate) wrap: Wrap,
     pub(crate) positions: &'b [f32],
     pub(crate) colors: &'b [f32],
     pub(crate) node_boxes: &'b [f32],
@@ -302,6 +305,7 @@ impl<'a> Blend<'a, '_> {
             has_color: self.has_color,
             missing_node_colors: self.missing_node_colors,
             mean_mass: self.mean_mass(weights),
+            wrap: self.wrap,
             positions,
             colors,
             node_boxes,
@@ -331,7 +335,13 @@ impl Prepared<'_> {
         self.mean_mass
     }
 
-    /// Blended coordinates, `n · dim`, point-major in tree order.
+    /// How the domain treats its borders (see [`Blend::wrap`]).
+    pub fn wrap(&self) -> Wrap {
+        self.wrap
+    }
+
+    /// Blended coordinates, `n · dim`, point-major in tree order. A periodic blend's are lifts
+    /// (within half a period of `[0,1)^d`; fold them to get points of the torus).
     pub fn positions(&self) -> &[f32] {
         self.positions
     }
@@ -350,7 +360,7 @@ impl Prepared<'_> {
     pub fn point(&self, p: &[f32], kernel: Kernel) -> Result<PointValue, Error> {
         let q = self.point_arg(p)?;
         let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        Ok(crate::point::point(self, &q, kp))
+        crate::periodic::point(self.wrap, self, &q, kernel, kp)
     }
 
     /// [`Blend::range`] for the prepared weights (same result, bit for bit).
@@ -363,12 +373,15 @@ impl Prepared<'_> {
         }
         let qlo = self.point_arg(lo)?;
         let qhi = self.point_arg(hi)?;
-        Ok(crate::range::range(self, &qlo, &qhi))
+        Ok(crate::periodic::range(self.wrap, self, &qlo, &qhi))
     }
 
     /// [`Blend::sample`] for the prepared weights (same result, bit for bit).
     pub fn sample(&self, index: u32) -> Result<Sample, Error> {
-        sample(self, index)
+        Ok(crate::periodic::fold_sample(
+            self.wrap,
+            sample(self, index)?,
+        ))
     }
 
     /// [`Blend::splat`] for the prepared weights (same result, bit for bit): the whole grid as one

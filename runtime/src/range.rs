@@ -25,20 +25,34 @@ impl Blend<'_, '_> {
     ///
     /// A blend with color needs every map's node color sums: if one was baked without them
     /// (`[storage] node_colors = false`), this returns [`Error::MissingAttribute`].
+    ///
+    /// On a periodic blend the box is a box of the torus: it may cross the borders (give it as,
+    /// e.g., `[0.9, 1.1]`; each piece is counted), an axis at least one period wide covers the
+    /// whole circle, and a box with `hi < lo` on some axis is empty, as when clamped.
     pub fn range(&self, weights: &[f32], lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
         self.check_weights(weights)?;
         self.check_node_colors()?;
         let qlo = self.point_arg(lo)?;
         let qhi = self.point_arg(hi)?;
-        Ok(range(&self.weighted(weights), &qlo, &qhi))
+        Ok(crate::periodic::range(
+            self.wrap,
+            &self.weighted(weights),
+            &qlo,
+            &qhi,
+        ))
     }
 }
 
-/// A range query over the closed box [`qlo`, `qhi`] (finite, `dim` coordinates used).
-pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM]) -> RangeValue {
+/// Counts the points inside the closed box [`qlo`, `qhi`] (finite, `dim` coordinates used) into
+/// `count` and adds their color ratios to `csum`.
+pub(crate) fn accumulate(
+    s: &impl Source,
+    qlo: &[f32; MAX_DIM],
+    qhi: &[f32; MAX_DIM],
+    count: &mut u32,
+    csum: &mut [f32; 3],
+) {
     let d = s.dim();
-    let mut count = 0u32;
-    let mut csum = [0.0f32; 3];
     let mut leaf = s.leaf_state();
     let mut stack = Stack::new(Node::root(s.n()));
     while let Some(node) = stack.pop() {
@@ -50,7 +64,7 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
             continue;
         }
         if (0..d).all(|k| blo[k] >= qlo[k] && bhi[k] <= qhi[k]) {
-            count += node.count;
+            *count += node.count;
             let c = s.node_color(node);
             for (a, c) in csum.iter_mut().zip(c) {
                 *a += c;
@@ -61,7 +75,7 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
             for i in node.range() {
                 let y = s.position(&leaf, i);
                 if (0..d).all(|k| y[k] >= qlo[k] && y[k] <= qhi[k]) {
-                    count += 1;
+                    *count += 1;
                     let c = s.color(i);
                     for (a, c) in csum.iter_mut().zip(c) {
                         *a += c;
@@ -74,6 +88,10 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
             stack.push(l);
         }
     }
+}
+
+/// The range value of a point count and color sum ([`accumulate`]).
+pub(crate) fn finish(s: &impl Source, count: u32, csum: [f32; 3]) -> RangeValue {
     let mean_mass = s.mean_mass();
     let scale = mean_mass / s.n() as f32;
     RangeValue {
@@ -81,4 +99,12 @@ pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM])
         mass: count as f32 * scale,
         color: csum.map(|c| c * scale),
     }
+}
+
+/// A range query over the closed box [`qlo`, `qhi`] (finite, `dim` coordinates used).
+pub(crate) fn range(s: &impl Source, qlo: &[f32; MAX_DIM], qhi: &[f32; MAX_DIM]) -> RangeValue {
+    let mut count = 0u32;
+    let mut csum = [0.0f32; 3];
+    accumulate(s, qlo, qhi, &mut count, &mut csum);
+    finish(s, count, csum)
 }

@@ -55,7 +55,8 @@ impl Blend<'_, '_> {
     /// Adds the kernel reconstruction of the blend for `weights` to every cell center of `target`:
     /// each cell gets the density and color a point query at its center returns, within the
     /// tolerance [`SPLAT_TERM_TOLERANCE`] states (the splat weighs each point by a product of
-    /// per-axis Gaussian factors; it counts exactly the points a query counts).
+    /// per-axis Gaussian factors; it counts exactly the points a query counts). On a periodic
+    /// blend every point's kernel wraps around the grid's borders.
     pub fn splat(
         &self,
         weights: &[f32],
@@ -70,8 +71,15 @@ impl Blend<'_, '_> {
             color,
         } = target;
         check_target(self.dim, &res, density, color.as_deref())?;
-        splat(&self.weighted(weights), kernel, kp, &res, density, color);
-        Ok(())
+        crate::periodic::splat(
+            self.wrap,
+            &self.weighted(weights),
+            kernel,
+            kp,
+            &res,
+            density,
+            color,
+        )
     }
 }
 

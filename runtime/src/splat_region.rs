@@ -10,12 +10,16 @@
 //!
 //! Every cell gets exactly the terms of the reference splat (`splat::splat_cells`: same cutoff test
 //! on the same squared distance, same factors, same products, same order), so a region splat equals
-//! the same cells of the full splat bit for bit.
+//! the same cells of the full splat bit for bit. On a periodic blend that holds shift by shift:
+//! the full splat (`periodic::splat`) splats each image of the blend in turn, and the region splat
+//! visits the same images in the same order ([`Prepared::walk`] runs the shifts), so each point's
+//! kernel wraps around the grid's borders identically.
 
 use crate::error::Error;
 use crate::footprint::{Axes, Lanes, Span, LANES};
 use crate::grid::Region;
 use crate::kernel::{self, Kernel};
+use crate::periodic::Shifts;
 use crate::prepared::Prepared;
 use crate::splat::{premultiplied, splat_cells};
 
@@ -47,22 +51,25 @@ impl Prepared<'_> {
                 });
             }
         }
+        // Every image of a periodic blend that can reach the region (the blend itself otherwise),
+        // visited by `walk`.
+        let shifts = crate::periodic::region_shifts(self.wrap, self, &region, kernel)?;
         if cells == 0 {
             return Ok(());
         }
         let radius = kernel.sigma * kernel::TRUNCATION;
         match self.dim {
-            1 => self.splat_points(kp, radius, &region.axes::<1>(), density, color),
+            1 => self.splat_points(kp, radius, &region.axes::<1>(), shifts, density, color),
             2 => {
                 let axes = region.axes::<2>();
                 if crate::plane::fits(&axes, radius) {
-                    self.splat_plane(kp, radius, &axes, density, color)
+                    self.splat_plane(kp, radius, &axes, shifts, density, color)
                 } else {
-                    self.splat_points(kp, radius, &axes, density, color)
+                    self.splat_points(kp, radius, &axes, shifts, density, color)
                 }
             }
-            3 => self.splat_points(kp, radius, &region.axes::<3>(), density, color),
-            _ => self.splat_points(kp, radius, &region.axes::<4>(), density, color),
+            3 => self.splat_points(kp, radius, &region.axes::<3>(), shifts, density, color),
+            _ => self.splat_points(kp, radius, &region.axes::<4>(), shifts, density, color),
         }
         Ok(())
     }
@@ -72,31 +79,16 @@ impl Prepared<'_> {
         kp: kernel::Prepared,
         radius: f32,
         axes: &Axes<D>,
+        shifts: Shifts,
         density: &mut [f32],
         mut color: Option<&mut [f32]>,
     ) {
         let scale = kp.norm / self.n as f32;
         let mean_mass = self.mean_mass;
-        let has_color = self.has_color;
-        self.walk(axes, radius, kp.radius2, |range| {
-            let Some(points) = self.positions.get(range.start * D..range.end * D) else {
-                return;
-            };
-            let colors = if has_color {
-                self.colors.get(range.start * 3..range.end * 3)
-            } else {
-                None
-            };
-            for (j, y) in points.chunks_exact(D).enumerate() {
-                let y: [f32; D] = core::array::from_fn(|k| y[k]);
-                let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
-                    Some(&[r, g, b]) => [r, g, b],
-                    _ => [0.0; 3],
-                };
-                let cm = premultiplied(c, mean_mass);
-                let color = color.as_deref_mut();
-                splat_point(axes, &y, &cm, kp, radius, scale, density, color);
-            }
+        self.walk(axes, radius, kp.radius2, shifts, |y, &c| {
+            let cm = premultiplied(c, mean_mass);
+            let color = color.as_deref_mut();
+            splat_point(axes, y, &cm, kp, radius, scale, density, color);
         });
     }
 }

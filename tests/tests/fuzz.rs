@@ -3,7 +3,7 @@
 //! corpus from small real bakes plus synthetic 1D/3D/4D archives.
 
 use otbake_formats::storage::{Precision, Storage};
-use otbake_formats::{proxy::Proxy as ProxyData, tree, write};
+use otbake_formats::{proxy::Proxy as ProxyData, tree, write, Wrap};
 use otbake_tests::fuzz::{exercise, mutate, Rng};
 use otbake_tests::{fuzz_corpus, otbake_ok, repo_root, scratch, shared_data, write_manifest};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -14,6 +14,20 @@ fn corpus_dir() -> std::path::PathBuf {
 }
 
 fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool, storage: Storage) {
+    synthetic_in(dir, dim, n, k, color, storage, Wrap::Clamp)
+}
+
+/// Synthetic archives; periodic ones hold proxy points in [0,1) and maps of lifts `p + δ`,
+/// `|δ| <= ½`, as the baker writes them.
+fn synthetic_in(
+    dir: &Path,
+    dim: usize,
+    n: usize,
+    k: usize,
+    color: bool,
+    storage: Storage,
+    wrap: Wrap,
+) {
     std::fs::create_dir_all(dir).unwrap();
     let mut rng = Rng(dim as u64 * 100 + n as u64);
     let depth = tree::depth(n as u32, 2);
@@ -29,6 +43,7 @@ fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool, storage: S
         leaf_size: 2,
         depth,
         key,
+        wrap: wrap as u32,
         description: "fuzz",
         positions: &proxy,
         node_boxes: &boxes,
@@ -36,7 +51,12 @@ fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool, storage: S
     .unwrap();
     std::fs::write(dir.join("proxy.otb"), &p).unwrap();
     for m in 0..k {
-        let pos: Vec<f32> = (0..n * dim).map(|_| unit(&mut rng)).collect();
+        let pos: Vec<f32> = (0..n * dim)
+            .map(|i| match wrap {
+                Wrap::Clamp => unit(&mut rng),
+                Wrap::Periodic => proxy[i] + unit(&mut rng) - 0.5,
+            })
+            .collect();
         let colors: Vec<f32> = if color {
             (0..n * 3).map(|_| unit(&mut rng)).collect()
         } else {
@@ -50,6 +70,7 @@ fn synthetic(dir: &Path, dim: usize, n: usize, k: usize, color: bool, storage: S
                 key: [m as u8; 32],
                 composite: (m % 3) as u32,
                 mean_mass: 0.3,
+                wrap,
                 positions: &pos,
                 colors: &colors,
                 solver_report: "fuzz",
@@ -131,6 +152,43 @@ fn write_corpus_when_asked() {
         2,
         true,
         Storage::COMPACT,
+    );
+    // Periodic (format 3): a real bake of two tileable textures on a uniform proxy, and synthetic
+    // lifts in 1D (full) and 2D (compact).
+    let body = format!(
+        "[output]\ndir = \"out\"\n[proxy]\nkind = \"uniform\"\nsamples = 40\nleaf_size = 2\n[solver]\nkind = \"exact\"\n\
+         [[input]]\nname = \"onyx\"\npath = \"{}\"\nwrap = \"periodic\"\n[[input]]\nname = \"pebbles\"\npath = \"{}\"\nwrap = \"periodic\"\n",
+        data.join("textures/marble_onyx003_ambientcg_1k.jpg").display(),
+        data.join("textures/pebbles_stonewall_godot.png").display()
+    );
+    write_manifest(&dir, "m.toml", &body);
+    otbake_ok(&dir, &["bake", "m.toml"]);
+    let real = corpus.join("textures-periodic");
+    std::fs::create_dir_all(&real).unwrap();
+    for f in ["proxy", "onyx", "pebbles"] {
+        std::fs::copy(
+            dir.join(format!("out/{f}.otb")),
+            real.join(format!("{f}.otb")),
+        )
+        .unwrap();
+    }
+    synthetic_in(
+        &corpus.join("periodic-1d"),
+        1,
+        23,
+        2,
+        true,
+        Storage::FULL,
+        Wrap::Periodic,
+    );
+    synthetic_in(
+        &corpus.join("periodic-compact-2d"),
+        2,
+        41,
+        3,
+        true,
+        Storage::COMPACT,
+        Wrap::Periodic,
     );
 }
 

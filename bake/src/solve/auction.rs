@@ -11,6 +11,11 @@
 //! A sparse graph may admit no perfect matching; then duals fall without bound. Every phase has a
 //! processing budget, and running out of it is reported (the caller falls back), never looped on.
 
+use rayon::prelude::*;
+
+/// Rows per parallel work item of the ε-complementary-slackness check.
+const CHECK_CHUNK: usize = 4096;
+
 /// "Unassigned".
 const NONE: u32 = u32::MAX;
 
@@ -18,7 +23,7 @@ const NONE: u32 = u32::MAX;
 pub(crate) const BIDS_PER_ROW: u64 = 50;
 
 /// The candidate graph and its costs.
-pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64> {
+pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
     pub row_ptr: &'a [usize],
     pub col: &'a [u32],
     pub cols: usize,
@@ -55,7 +60,7 @@ pub(crate) fn auction<C, F>(
     mut complete: F,
 ) -> Matching
 where
-    C: Fn(usize, usize) -> f64,
+    C: Fn(usize, usize) -> f64 + Sync,
     F: FnMut(&[usize], &mut [u32], &mut [u32], &mut [f64]) -> u32,
 {
     let rows = graph.row_ptr.len() - 1;
@@ -68,18 +73,28 @@ where
     loop {
         phases += 1;
         // Free every row that violates ε-complementary slackness (all rows in the first phase).
-        let mut queue: Vec<usize> = Vec::new();
-        for i in 0..rows {
-            if x[i] == NONE {
-                queue.push(i);
-                continue;
-            }
-            let (u1, _, _, _) = best_two(graph, v, i);
-            let mine = (graph.cost)(i, x[i] as usize) - v[x[i] as usize];
-            if mine > u1 + eps {
+        // The check reads only the duals and the assignment, so it runs in parallel over fixed
+        // chunks; the queue comes out in row order for any thread count.
+        let mut queue: Vec<usize> = {
+            let (xr, vr) = (&x, &*v);
+            (0..rows.div_ceil(CHECK_CHUNK))
+                .into_par_iter()
+                .flat_map_iter(|c| {
+                    (c * CHECK_CHUNK..((c + 1) * CHECK_CHUNK).min(rows)).filter(move |&i| {
+                        if xr[i] == NONE {
+                            return true;
+                        }
+                        let (u1, _, _, _) = best_two(graph, vr, i);
+                        let mine = (graph.cost)(i, xr[i] as usize) - vr[xr[i] as usize];
+                        mine > u1 + eps
+                    })
+                })
+                .collect()
+        };
+        for &i in &queue {
+            if x[i] != NONE {
                 y[x[i] as usize] = NONE;
                 x[i] = NONE;
-                queue.push(i);
             }
         }
         let mut parked = Vec::new();
@@ -132,7 +147,7 @@ where
 }
 
 /// Smallest and second-smallest reduced cost of row i over its candidates: (u1, j1, u2, j2).
-fn best_two<C: Fn(usize, usize) -> f64>(
+fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     graph: &Graph<'_, C>,
     v: &[f64],
     i: usize,

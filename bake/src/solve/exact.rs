@@ -14,8 +14,8 @@
 //! the shortest paths preserve; optimality is then checked, not assumed: the reported residual is the duality gap of the feasible dual
 //! `u_i = min_j (c_ij − v_j)`, which is 0 exactly when the duals certify the assignment.
 
-use super::cost::det_sum;
-use super::{ExactSettings, Problem, Report, Solution, SolveError};
+use super::cost::{det_sum, sq};
+use super::{ExactSettings, Problem, Report, Solution, SolveError, Wrap};
 use rayon::prelude::*;
 
 pub(super) const NAME: &str = "exact";
@@ -31,6 +31,7 @@ pub(super) fn solve(
     problem: &Problem<'_>,
     n: usize,
     settings: &ExactSettings,
+    wrap: Wrap,
 ) -> Result<Solution, SolveError> {
     // Indices are u32, with u32::MAX reserved for "unassigned".
     let max = settings.max_n.min(NONE as usize - 1);
@@ -45,16 +46,19 @@ pub(super) fn solve(
     let dim = problem.dim;
     let scale = super::extent_sq(dim, problem.source, problem.target);
     let (lap, gap) = match dim {
-        1 => run_fixed::<1>(problem, scale),
-        2 => run_fixed::<2>(problem, scale),
-        3 => run_fixed::<3>(problem, scale),
-        4 => run_fixed::<4>(problem, scale),
-        _ => run_dyn(problem, scale),
+        1 => run_fixed::<1>(problem, scale, wrap),
+        2 => run_fixed::<2>(problem, scale, wrap),
+        3 => run_fixed::<3>(problem, scale, wrap),
+        4 => run_fixed::<4>(problem, scale, wrap),
+        _ => run_dyn(problem, scale, wrap),
     };
     let mut mapped = Vec::with_capacity(n * dim);
     for &j in &lap.x {
         let j = j as usize;
         mapped.extend_from_slice(&problem.target[j * dim..(j + 1) * dim]);
+    }
+    if wrap == Wrap::Periodic {
+        super::cost::lift(dim, problem.source, &mut mapped);
     }
     let cost = super::transport_cost(dim, problem.source, &mapped);
     let residual = gap / n as f64;
@@ -92,38 +96,35 @@ pub(super) fn solve(
     })
 }
 
-/// Solves with the dimension known at compile time, so the cost closure unrolls and inlines.
-fn run_fixed<const D: usize>(problem: &Problem<'_>, scale: f64) -> (Lap, f64) {
+/// Solves with the dimension known at compile time, so the cost closure unrolls and inlines (one
+/// closure per metric, so the clamped cost has no branch in it).
+fn run_fixed<const D: usize>(problem: &Problem<'_>, scale: f64, wrap: Wrap) -> (Lap, f64) {
     let pts = |data: &[f32]| -> Vec<[f64; D]> {
         data.chunks_exact(D)
             .map(|p| std::array::from_fn(|k| f64::from(p[k])))
             .collect()
     };
     let (s, t) = (pts(problem.source), pts(problem.target));
-    let cost = |i: usize, j: usize| -> f64 {
-        let (a, b) = (&s[i], &t[j]);
-        let mut acc = 0.0;
-        for k in 0..D {
-            let d = a[k] - b[k];
-            acc += d * d;
-        }
-        acc
-    };
-    let lap = lapjv(s.len(), &cost, scale);
-    let gap = duality_gap(s.len(), &cost, &lap);
-    (lap, gap)
+    match wrap {
+        Wrap::Clamp => run_with(s.len(), &|i, j| sq(Wrap::Clamp, &s[i], &t[j]), scale),
+        Wrap::Periodic => run_with(s.len(), &|i, j| sq(Wrap::Periodic, &s[i], &t[j]), scale),
+    }
 }
 
-fn run_dyn(problem: &Problem<'_>, scale: f64) -> (Lap, f64) {
+fn run_dyn(problem: &Problem<'_>, scale: f64, wrap: Wrap) -> (Lap, f64) {
     let dim = problem.dim;
-    let (s, t) = (super::to_f64(problem.source), super::to_f64(problem.target));
+    let n = problem.source.len() / dim;
+    let (s, t) = (problem.source, problem.target);
     let cost = |i: usize, j: usize| -> f64 {
-        let (a, b) = (&s[i * dim..(i + 1) * dim], &t[j * dim..(j + 1) * dim]);
-        a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+        super::cost::sq_dist_in(wrap, &s[i * dim..(i + 1) * dim], &t[j * dim..(j + 1) * dim])
     };
-    let n = s.len() / dim;
-    let lap = lapjv(n, &cost, scale);
-    let gap = duality_gap(n, &cost, &lap);
+    run_with(n, &cost, scale)
+}
+
+/// The assignment of an n×n cost and its duality gap.
+fn run_with<C: Fn(usize, usize) -> f64 + Sync>(n: usize, cost: &C, scale: f64) -> (Lap, f64) {
+    let lap = lapjv(n, cost, scale);
+    let gap = duality_gap(n, cost, &lap);
     (lap, gap)
 }
 

@@ -9,6 +9,11 @@
 //!   millions of points and moves the source onto the target *distribution*, but its map is not the
 //!   OT map in general (NOTES.md: +16% cost on a uniform → three-blobs case, fine on Gaussians).
 //!
+//! * On the flat torus (tileable textures, `wrap = "periodic"`), [`solve_in`] with
+//!   [`Wrap::Periodic`] runs the same solvers with the squared distance to the nearest image:
+//!   `exact` and `sinkhorn` solve that problem (the metric enters only through `cost`), `sliced`
+//!   runs its torus variant (`circular`); maps come back as lifts `x + δ`, `|δ| <= ½`.
+//!
 //! Every solver returns a [`Report`] whose `detail` line is deterministic (no timings) because it is
 //! stored in archives that must be byte-identical, and every solver is deterministic for any rayon
 //! thread count. A solver that did not converge returns [`SolveError::NotConverged`]: a bad map is never
@@ -19,7 +24,8 @@
 //! modules so they can reuse them.
 
 mod auction;
-mod cost;
+mod circular;
+pub(crate) mod cost;
 mod exact;
 pub mod metrics;
 mod rng;
@@ -27,12 +33,14 @@ mod sinkhorn;
 mod sliced;
 
 pub use cost::transport_cost;
+pub use otbake_formats::Wrap;
 pub use sinkhorn::{MapKind, SinkhornSettings};
 
 /// Equal-size point clouds in `[0,1]^d` (point-major, `n*dim` f32 each). Uniform weights `1/n`.
 ///
 /// The unit cube is the pipeline's convention, not a requirement of the solvers: any finite
-/// coordinates work.
+/// coordinates work. On the torus ([`solve_in`] with [`Wrap::Periodic`]) coordinates must lie in
+/// `[0, 1)`.
 #[derive(Clone, Copy, Debug)]
 pub struct Problem<'a> {
     pub dim: usize,
@@ -190,6 +198,13 @@ pub enum SolveError {
     },
     #[error("point clouds are empty: sample at least one point")]
     Empty,
+    #[error("{which} point {index} has coordinate {value} on axis {axis}, outside [0, 1): periodic problems live on the torus [0,1)^d; fold the points into it")]
+    OutsideTorus {
+        which: &'static str,
+        index: usize,
+        axis: usize,
+        value: f32,
+    },
     #[error("{which} point {index} has a non-finite coordinate (axis {axis}): check the input's density and the sampler")]
     NonFinite {
         which: &'static str,
@@ -214,16 +229,54 @@ pub enum SolveError {
     },
 }
 
-/// Solves the transport problem with the chosen solver.
+/// Solves the transport problem with the chosen solver, in the unit cube (squared Euclidean cost).
 ///
 /// The problem is validated first (equal sizes, n ≥ 1, finite coordinates); the output is
 /// deterministic for any rayon thread count.
 pub fn solve(problem: &Problem<'_>, settings: &SolverSettings) -> Result<Solution, SolveError> {
+    solve_in(Wrap::Clamp, problem, settings)
+}
+
+/// Solves the transport problem in the domain `wrap`: [`Wrap::Clamp`] is [`solve`];
+/// [`Wrap::Periodic`] transports on the flat torus `[0,1)^d` (cost: squared distance to the nearest
+/// image, [`cost`]), and the map's `mapped` points are *lifts* `source_i + δ_i` with `δ_i` the
+/// shortest displacement (`|δ_i| <= ½` per axis, see `otbake_formats::Wrap`), so interpolating them
+/// follows the torus geodesic; the report's cost is the torus cost.
+///
+/// The wrap is an argument beside the settings rather than a field of [`Problem`] so that the clamped
+/// callers (benchmarks, tests) stay as they are.
+pub fn solve_in(
+    wrap: Wrap,
+    problem: &Problem<'_>,
+    settings: &SolverSettings,
+) -> Result<Solution, SolveError> {
     let n = validate(problem)?;
+    if wrap == Wrap::Periodic {
+        for (which, data) in [("source", problem.source), ("target", problem.target)] {
+            check_periodic(which, problem.dim, data)?;
+        }
+    }
     match settings {
-        SolverSettings::Exact(s) => exact::solve(problem, n, s),
-        SolverSettings::Sliced(s) => sliced::solve(problem, n, s),
-        SolverSettings::Sinkhorn(s) => sinkhorn::solve(problem, n, s),
+        SolverSettings::Exact(s) => exact::solve(problem, n, s, wrap),
+        SolverSettings::Sliced(s) => match wrap {
+            Wrap::Clamp => sliced::solve(problem, n, s),
+            Wrap::Periodic => circular::solve(problem, n, s),
+        },
+        SolverSettings::Sinkhorn(s) => sinkhorn::solve(problem, n, s, wrap),
+    }
+}
+
+/// Errors on the first coordinate outside `[0, 1)` (the torus' fundamental domain).
+fn check_periodic(which: &'static str, dim: usize, data: &[f32]) -> Result<(), SolveError> {
+    use rayon::prelude::*;
+    match data.par_iter().position_first(|v| !(0.0..1.0).contains(v)) {
+        Some(k) => Err(SolveError::OutsideTorus {
+            which,
+            index: k / dim,
+            axis: k % dim,
+            value: data[k],
+        }),
+        None => Ok(()),
     }
 }
 
@@ -293,3 +346,5 @@ fn extent_sq(dim: usize, a: &[f32], b: &[f32]) -> f64 {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod torus_tests;

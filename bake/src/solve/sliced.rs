@@ -108,7 +108,7 @@ pub(super) fn solve(
     })
 }
 
-fn check_settings(s: &SlicedSettings) -> Result<(), SolveError> {
+pub(super) fn check_settings(s: &SlicedSettings) -> Result<(), SolveError> {
     let bad = |field, reason: &str| {
         Err(SolveError::InvalidSettings {
             solver: NAME,
@@ -135,9 +135,9 @@ fn check_settings(s: &SlicedSettings) -> Result<(), SolveError> {
 }
 
 /// Buffers of one direction, reused across iterations.
-struct Direction {
+pub(super) struct Direction {
     /// Projections of the moving points, then their 1D displacements.
-    xp: Vec<f64>,
+    pub(super) xp: Vec<f64>,
     /// Order keys of the moving points' projections, sorted along with `idx`.
     keys: Vec<u64>,
     /// Point indices, in key order after sorting.
@@ -150,7 +150,7 @@ struct Direction {
 }
 
 impl Direction {
-    fn new(n: usize) -> Self {
+    pub(super) fn new(n: usize) -> Self {
         Self {
             xp: vec![0.0; n],
             keys: vec![0; n],
@@ -164,7 +164,7 @@ impl Direction {
     /// Projects both clouds on `theta`, matches them by rank and leaves in `xp` the 1D displacement
     /// of every moving point (target value at its rank − its own value). Sequential: the directions
     /// of an iteration run in parallel instead.
-    fn displacements(&mut self, dim: usize, x: &[f64], y: &[f64], theta: &[f64]) {
+    pub(super) fn displacements(&mut self, dim: usize, x: &[f64], y: &[f64], theta: &[f64]) {
         for (k, p) in self.ykeys.iter_mut().zip(y.chunks_exact(dim)) {
             *k = order_key(dot(p, theta));
         }
@@ -206,7 +206,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// An unsigned key with the order of `f64::total_cmp`.
 #[inline]
-fn order_key(v: f64) -> u64 {
+pub(super) fn order_key(v: f64) -> u64 {
     let b = v.to_bits();
     if b >> 63 == 1 {
         !b
@@ -217,14 +217,14 @@ fn order_key(v: f64) -> u64 {
 
 /// The inverse of [`order_key`].
 #[inline]
-fn key_value(k: u64) -> f64 {
+pub(super) fn key_value(k: u64) -> f64 {
     f64::from_bits(if k >> 63 == 1 { k & !(1 << 63) } else { !k })
 }
 
 /// Stable LSD radix sort of `keys` (8-bit digits, digits shared by all keys skipped), permuting
 /// `vals` alike when it is not empty. `tmp_*` are scratch buffers of the same lengths. O(n) per
 /// digit, and — unlike a comparison sort split across threads — trivially deterministic.
-fn radix_sort(
+pub(super) fn radix_sort(
     keys: &mut Vec<u64>,
     tmp_keys: &mut Vec<u64>,
     vals: &mut Vec<u32>,

@@ -13,10 +13,18 @@
 //! when |x − box|² − max(potential in the cell) exceeds the current threshold, which is a lower bound
 //! of C − potential for every descendant because the box holds all descendant positions.
 //!
+//! On the torus (`Wrap::Periodic`) C is the squared distance to the nearest image, and a cell's bound
+//! is the smallest of the bounds for the query's images `x − m` that can be nearest (per axis `x_k`
+//! and `x_k ∓ 1`, towards the far side: 2^d images): C(x, y) = min_m |x − m − y|², and each term is
+//! bounded below as in the Euclidean case. The hierarchy needs no change: cells are boxes of points
+//! in `[0,1)^d`, and only the bound and the costs see the metric.
+//!
 //! Determinism: every row (column) is searched independently and rows are processed in fixed-size
 //! chunks concatenated in order, so the kernel's bytes do not depend on the thread count.
 
 use super::hierarchy::{Hierarchy, Level};
+use crate::solve::cost;
+use otbake_formats::Wrap;
 use rayon::prelude::*;
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
@@ -45,7 +53,8 @@ impl Kernel {
     }
 }
 
-/// Squared distance.
+/// Squared Euclidean distance (the tests' reference; the solver uses [`cost::sq`]).
+#[cfg(test)]
 #[inline]
 pub(super) fn sq<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
     let mut s = 0.0;
@@ -208,12 +217,18 @@ fn search<const D: usize>(
     pot: &[f64],
     x: &[f64; D],
     margin: f64,
+    wrap: Wrap,
     stack: &mut Vec<(u32, u32, f64)>,
     out: &mut Vec<(u32, f64)>,
+    hint: Option<u32>,
 ) -> f64 {
     let start = out.len();
-    let x2: f64 = x.iter().map(|v| v * v).sum();
-    let mut best = f64::INFINITY;
+    let images = cost::Images::of(x, wrap);
+    // An upper bound of the minimum from a likely candidate (the previous row's best: rows are in
+    // Morton order, so neighbours share candidates) lets the search prune from the root.
+    let mut best = hint.map_or(f64::INFINITY, |j| {
+        cost::sq(wrap, x, &h.levels[level].pos[j as usize]) - pot[j as usize]
+    });
     stack.clear();
     stack.push((0, 0, f64::NEG_INFINITY));
     let mut kids: [(f64, u32); 16] = [(0.0, 0); 16];
@@ -223,7 +238,7 @@ fn search<const D: usize>(
         }
         let l = l as usize;
         if l == level {
-            let r = sq(x, &h.levels[l].pos[c as usize]) - pot[c as usize];
+            let r = cost::sq(wrap, x, &h.levels[l].pos[c as usize]) - pot[c as usize];
             if r <= best + margin {
                 out.push((c, r));
                 best = best.min(r);
@@ -236,7 +251,7 @@ fn search<const D: usize>(
         if l + 1 == level && (b - a) as usize > kids.len() {
             // Many leaves (coincident points under one finest cell): evaluate them directly.
             for j in a..b {
-                let r = sq(x, &next.pos[j as usize]) - pot[j as usize];
+                let r = cost::sq(wrap, x, &next.pos[j as usize]) - pot[j as usize];
                 if r <= best + margin {
                     out.push((j, r));
                     best = best.min(r);
@@ -248,16 +263,18 @@ fn search<const D: usize>(
         for j in a..b {
             let ju = j as usize;
             let bound = if l + 1 == level {
-                sq(x, &next.pos[ju]) - pot[ju]
+                cost::sq(wrap, x, &next.pos[ju]) - pot[ju]
             } else {
-                cell_bound(
-                    x,
-                    x2,
-                    &bnd.beta[l + 1][ju],
-                    bnd.alpha[l + 1][ju],
-                    &next.lo[ju],
-                    &next.hi[ju],
-                )
+                images.min_of(|p, p2| {
+                    cell_bound(
+                        p,
+                        p2,
+                        &bnd.beta[l + 1][ju],
+                        bnd.alpha[l + 1][ju],
+                        &next.lo[ju],
+                        &next.hi[ju],
+                    )
+                })
             };
             if bound <= best + margin {
                 kids[m] = (bound, j);
@@ -291,6 +308,7 @@ fn search_all<const D: usize>(
     level: usize,
     pot: &[f64],
     margin: f64,
+    wrap: Wrap,
 ) -> (Vec<usize>, Vec<u32>, Vec<f64>) {
     let bnd = bounds(to, level, pot);
     let m = from.len();
@@ -303,6 +321,7 @@ fn search_all<const D: usize>(
             let mut lens = Vec::with_capacity(b - a);
             let mut idx = Vec::new();
             let mut mins = Vec::with_capacity(b - a);
+            let mut hint = None;
             for i in a..b {
                 found.clear();
                 let best = search(
@@ -312,9 +331,15 @@ fn search_all<const D: usize>(
                     pot,
                     &from.pos[i],
                     margin,
+                    wrap,
                     &mut stack,
                     &mut found,
+                    hint,
                 );
+                hint = found
+                    .iter()
+                    .min_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)))
+                    .map(|e| e.0);
                 found.sort_unstable_by_key(|e| e.0);
                 lens.push(found.len() as u32);
                 idx.extend(found.iter().map(|e| e.0));
@@ -363,7 +388,8 @@ fn transpose(ptr: &[usize], idx: &[u32], cols: usize) -> (Vec<usize>, Vec<u32>, 
 }
 
 /// Builds the truncated kernel of one level for target potential `g` at scale `eps`, keeping pairs
-/// within `theta`·ε of their row's or column's best (see the module docs).
+/// within `theta`·ε of their row's or column's best (see the module docs), in the metric of `wrap`.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn build<const D: usize>(
     src: &Hierarchy<D>,
     tgt: &Hierarchy<D>,
@@ -371,13 +397,14 @@ pub(super) fn build<const D: usize>(
     g: &[f64],
     eps: f64,
     theta: f64,
+    wrap: Wrap,
 ) -> Kernel {
     let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
     let margin = theta * eps;
     // Row test against g; f = row minima (hard c-transform).
-    let (rptr, ridx, f) = search_all(xs, tgt, level, g, margin);
+    let (rptr, ridx, f) = search_all(xs, tgt, level, g, margin, wrap);
     // Column test against f.
-    let (cptr, cidx, _) = search_all(ys, src, level, &f, margin);
+    let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap);
     // Column-test pairs as rows, then the union with the row-test pairs, row by row.
     let (eptr, eidx, _) = transpose(&cptr, &cidx, xs.len());
     let m = xs.len();
@@ -418,7 +445,7 @@ pub(super) fn build<const D: usize>(
                         (None, None) => unreachable!(),
                     };
                     let ju = j as usize;
-                    let c = sq(&xs.pos[i], &ys.pos[ju]);
+                    let c = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
                     let v = ((f[i] + g[ju] - c) / eps).exp().clamp(K_MIN, 1.0);
                     col.push(j);
                     k.push(v as f32);
@@ -488,7 +515,7 @@ mod tests {
                 .collect();
             let eps = 1e-3;
             let theta = 8.0;
-            let kern = build(&hs, &ht, level, &g, eps, theta);
+            let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Clamp);
             let f: Vec<f64> = (0..xs.len())
                 .map(|i| {
                     (0..ys.len())

@@ -180,7 +180,7 @@ fn blur_far_below_the_spacing() {
         target: &target,
     };
     let s = SinkhornSettings {
-        blur_spacing: 1e-3,
+        blur_spacing: Some(1e-3),
         max_iterations: 300,
         ..Default::default()
     };
@@ -289,4 +289,30 @@ fn invalid_settings_are_named() {
             other => panic!("{field}: {other:?}"),
         }
     }
+}
+
+/// The spacing estimate follows the denser cloud's occupied volume: a uniform square gives about
+/// side/√n, and a cloud packed into a quarter of the square (the other spread over all of it) half
+/// that, which is what keeps the kernel's pairs per point bounded for concentrated targets.
+#[test]
+fn spacing_follows_the_denser_cloud() {
+    use super::hierarchy::{cell_counts, Grid};
+    let mut rng = SplitMix64::new(5);
+    let n = 20_000;
+    let to_pts = |v: Vec<f32>| -> Vec<[f64; 2]> {
+        v.chunks_exact(2)
+            .map(|p| [f64::from(p[0]), f64::from(p[1])])
+            .collect()
+    };
+    let wide = to_pts(uniform(&mut rng, n, [0.0, 0.0], [1.0, 1.0]));
+    let packed = to_pts(uniform(&mut rng, n, [0.0, 0.0], [0.5, 0.5]));
+    let spacing = |a: &[[f64; 2]], b: &[[f64; 2]]| {
+        let grid = Grid::new(a, b);
+        let (ca, cb) = (cell_counts(a, &grid), cell_counts(b, &grid));
+        super::point_spacing(&ca, &cb, grid.side, n, 2)
+    };
+    let even = spacing(&wide, &wide) * (n as f64).sqrt();
+    assert!((0.9..=1.1).contains(&even), "uniform: {even} × side/√n");
+    let half = spacing(&wide, &packed) * (n as f64).sqrt();
+    assert!((0.45..=0.6).contains(&half), "packed: {half} × side/√n");
 }
