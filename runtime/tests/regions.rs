@@ -310,3 +310,137 @@ fn image_sized_regions_match_their_references() {
         color.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
     );
 }
+
+/// A one-map blend (weight 1, so the blended points are `pos` exactly) with colors.
+fn exact_points(pos: &[f32]) -> (rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>) {
+    use otbake_formats::proxy::Proxy as ProxyData;
+    use otbake_formats::tree::{depth, fill_node_boxes, node_count};
+    use otbake_formats::write::{encode_map_content, encode_proxy, MapContent};
+    let n = pos.len() / 2;
+    let d = depth(n as u32, 4);
+    let mut boxes = vec![0.0; node_count(d) as usize * 4];
+    fill_node_boxes(pos, 2, d, &mut boxes);
+    let proxy = encode_proxy(&ProxyData {
+        dim: 2,
+        n: n as u32,
+        leaf_size: 4,
+        depth: d,
+        key: [5; 32],
+        wrap: 0,
+        description: "ties",
+        positions: pos,
+        node_boxes: &boxes,
+    })
+    .unwrap();
+    let colors: Vec<f32> = (0..n * 3).map(|i| 0.25 + (i % 7) as f32 * 0.1).collect();
+    let map = encode_map_content(
+        &MapContent {
+            dim: 2,
+            depth: d,
+            proxy_key: [5; 32],
+            key: [6; 32],
+            composite: 0,
+            mean_mass: 0.7,
+            wrap: otbake_formats::Wrap::Clamp,
+            positions: pos,
+            colors: &colors,
+            solver_report: "",
+            transport_cost: 0.0,
+        },
+        otbake_runtime::Storage::FULL,
+    )
+    .unwrap();
+    (proxy, map)
+}
+
+/// The block paths place a point's block by arithmetic and confirm it with an exact test of the
+/// cell before it; points within a few ulps of the cutoff of a cell along one axis (coordinate
+/// `(n + ½ ± rc) / res`, `rc` the radius in cells, so that rounding decides whether the cell
+/// counts) and on a cell's center along the other (so the full test is decided by the tie) must
+/// still get exactly the per-cell terms: point grids equal point queries and region splats the
+/// full splat, bit for bit. (Without the neighbour test, σ = 0.8 cell at 50² fails.)
+#[test]
+fn points_on_cutoff_ties_keep_their_bits() {
+    for (res, sigma_cells) in [
+        (64u32, 0.5f32),
+        (37, 0.5),
+        (50, 0.8),
+        (29, 0.3),
+        (41, 0.45),
+        (23, 0.7),
+    ] {
+        let rc = 3.0 * sigma_cells;
+        let mut pos = Vec::new();
+        let mut rng = Rng(u64::from(res));
+        for _ in 0..6000 {
+            // One coordinate on a cell's center (distance 0 along that axis), so that the cutoff
+            // is decided along the other, which sits at a tie.
+            let on_tie = (rng.next() % 2) as usize;
+            for axis in 0..2 {
+                let n = 2 + (rng.next() % (res as u64 - 4)) as i32;
+                if axis != on_tie {
+                    pos.push((n as f32 + 0.5) / res as f32);
+                    continue;
+                }
+                let side = if rng.next().is_multiple_of(2) {
+                    rc
+                } else {
+                    -rc
+                };
+                let mut v = (n as f32 + 0.5 + side) / res as f32;
+                // A few ulps either way of the tie.
+                for _ in 0..(rng.next() % 9) {
+                    v = if rng.next().is_multiple_of(2) {
+                        f32::from_bits(v.to_bits() + 1)
+                    } else {
+                        f32::from_bits(v.to_bits() - 1)
+                    };
+                }
+                pos.push(v.clamp(0.0, 1.0));
+            }
+        }
+        let (p, m) = exact_points(&pos);
+        let maps = [Map::open(&m).unwrap()];
+        let blend = Blend::new(Proxy::open(&p).unwrap(), &maps).unwrap();
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &[1.0], &mut store);
+        let kernel = Kernel {
+            sigma: sigma_cells / res as f32,
+        };
+        let full = Region::full([res, res, 1, 1]);
+        let cells = (res * res) as usize;
+        let mut out = vec![PointValue::default(); cells];
+        prep.point_grid(kernel, full, &mut out).unwrap();
+        for (cell, v) in out.iter().enumerate() {
+            let (_, c) = global(2, &full, cell);
+            let want = prep.point(&c, kernel).unwrap();
+            assert_eq!(
+                bits(v),
+                bits(&want),
+                "res {res} σ {sigma_cells} cell {cell}"
+            );
+        }
+        let mut d0 = vec![0.0f32; cells];
+        let mut c0 = vec![0.0f32; cells * 3];
+        let target = SplatTarget {
+            res: full.res,
+            density: &mut d0,
+            color: Some(&mut c0),
+        };
+        blend.splat(&[1.0], kernel, target).unwrap();
+        let mut d1 = vec![0.0f32; cells];
+        let mut c1 = vec![0.0f32; cells * 3];
+        prep.splat_region(kernel, full, &mut d1, Some(&mut c1))
+            .unwrap();
+        for cell in 0..cells {
+            assert_eq!(
+                d1[cell].to_bits(),
+                d0[cell].to_bits(),
+                "res {res} cell {cell}"
+            );
+            for a in 0..3 {
+                assert_eq!(c1[cell * 3 + a].to_bits(), c0[cell * 3 + a].to_bits());
+            }
+        }
+    }
+}
