@@ -94,32 +94,44 @@ impl Span {
     }
 }
 
-/// A point's cells along one axis for the 2D block paths ([`Axes::run`]): the `W` cells from
-/// `start` (global index), their squared distances `sq` to the point (`+∞` past the region), and
-/// which of them pass the per-axis test (`pass`, bit `j` for cell `start + j`).
+/// A point's window on one axis ([`Axes::window`]): of the [`LANES`] cells from `start` (global
+/// index), the cells `start + lead .. start + lead + len` pass the per-axis test.
 #[derive(Clone, Copy)]
-pub(crate) struct Run<const W: usize> {
+pub(crate) struct Window {
     pub start: usize,
-    pub sq: [f32; W],
-    pub pass: u32,
+    pub lead: usize,
+    pub len: usize,
 }
 
-/// Largest resolution of an axis the block paths take: coordinates in cells (`y · res`) then carry
-/// rounding errors below 2⁻⁴ cell, so a block placed by arithmetic is within a cell of the exact
-/// passing cells, which its two neighbour tests then confirm ([`Axes::run`]).
-const RUN_RES: f32 = 1_048_576.0;
+impl Window {
+    /// The window of the [`LANES`] cells from `start` whose passing lanes are the set bits of
+    /// `pass` (bit `j` for cell `start + j`): one run of ones, since passing cells are contiguous.
+    #[inline(always)]
+    pub fn new(start: usize, pass: u32) -> Self {
+        let lead = pass.trailing_zeros() as usize;
+        let end = (u32::BITS - pass.leading_zeros()) as usize;
+        Window {
+            start,
+            lead: lead.min(LANES),
+            len: end.saturating_sub(lead),
+        }
+    }
 
-/// Widest truncation radius, in cells, for which the block paths take a kernel on a region.
+    /// First passing cell (global index).
+    #[inline(always)]
+    pub fn first(&self) -> usize {
+        self.start + self.lead
+    }
+}
+
+/// How many cells before the point's own cell a [`Window`] starts.
+const BACK: usize = 3;
+
+/// Widest truncation radius, in cells, for which a [`Window`] holds every passing cell: passing
+/// cells `i` satisfy `|u − (i + ½)| <= radius` (`u` the coordinate in cells) up to rounding far below
+/// a cell, so with `m = ⌊u⌋` they lie in `m − 3 ..= m + 2` while the radius stays below 2.5, and a
+/// window from `m − 4` or `m − 3` holds them.
 pub(crate) const WINDOW_RADIUS: f32 = 2.4;
-
-/// Whether the block paths ([`Axes::run`]) may take an axis of `res` cells of which a region holds
-/// `size`, for a kernel of truncation radius `radius`: the region's centers are tabulated there
-/// (at most [`CENTERS`] cells), the resolution is at most [`RUN_RES`] and the radius spans at most
-/// [`WINDOW_RADIUS`] cells.
-pub(crate) fn windowed(res: u32, size: u32, radius: f32) -> bool {
-    let res = res as f32;
-    size as usize <= CENTERS && res <= RUN_RES && radius * res <= WINDOW_RADIUS
-}
 
 impl<const D: usize> Axes<D> {
     /// The axes of a region whose per-axis resolution, first cell and cell count are given (every
@@ -153,67 +165,45 @@ impl<const D: usize> Axes<D> {
         a
     }
 
-    /// The `W` cells of axis `k` (which must be [`windowed`]) that hold every cell where a
-    /// point at coordinate `y` can pass the per-axis test `(y − c)² <= radius2`, `rc` being the
-    /// truncation radius in cells with `2·rc <= W − 1`: `Err(())` if a cell just before them passes
-    /// (a tie in rounding; the caller takes a general path), `Ok(None)` if `ROWS` and none of them
-    /// passes. `ROWS` asks for the mask of passing cells (a block's rows, which may start or end
-    /// anywhere in the region: lanes past its end get `+∞`); otherwise the run is a block's columns,
-    /// kept inside the region (moved left at its end; the region is at least `W` cells wide), and
-    /// `pass` is left 0.
-    ///
-    /// With `u = y · res − ½` (the point in cells, clamped into the region; NaN maps to its start),
-    /// the exact passing cells are the integers of `[u − rc, u + rc]`, and the block starts at
-    /// `a = ⌈u − rc⌉`. The cell before it lies within one cell beyond the cutoff, where rounding
-    /// may decide, so it is tested; the cell after the block, `a + W >= u − rc + W >= u + rc + 1`,
-    /// lies more than a cell beyond it, which rounding cannot bridge: coordinates in cells carry
-    /// errors far below a cell (resolutions up to [`RUN_RES`]). And the cells passing the computed
-    /// test form one interval (the squared distance falls, then rises, with the index), so none
-    /// lies further out.
+    /// Whether [`Self::window`] finds every passing cell of axis `k` for a kernel of truncation
+    /// radius `radius`: the axis is tabulated and the radius spans at most [`WINDOW_RADIUS`] cells.
+    pub fn windowed(&self, k: usize, radius: f32) -> bool {
+        self.tabulated[k] && radius * self.res[k] <= WINDOW_RADIUS
+    }
+
+    /// The first of the [`LANES`] cells of the window of a point at coordinate `y` on axis `k`
+    /// (which must be [`Self::windowed`]): the window holds every cell where `(y − c)² <= r²` can
+    /// hold. A point outside the region (or a NaN) gets a window of the region's first or last
+    /// cells, where no cell passes.
     #[inline(always)]
-    pub fn run<const W: usize, const ROWS: bool>(
-        &self,
-        k: usize,
-        y: f32,
-        rc: f32,
-        radius2: f32,
-    ) -> Result<Option<Run<W>>, ()> {
-        const ROUND: f32 = 12_582_912.0;
+    pub fn window_start(&self, k: usize, y: f32) -> usize {
+        // The point's cell, clamped into the region by comparisons (which also map a NaN to the
+        // region's start; a point beyond the region's end keeps its last cells in the window),
+        // then rounded: `round(u − ½)` is `⌊u⌋` or `⌊u⌋ − 1`, so the window starts 3 or 4 cells
+        // before the point's cell and still holds every cell it can reach.
         let [lo, hi] = self.bounds[k];
         let u = y * self.res[k];
         let u = if u >= lo { u } else { lo };
         let u = if u <= hi { u } else { hi };
-        // ⌈x⌉ from the nearest integer (exact in this range), stepping up when it is below x.
-        let x = (u - 0.5) - rc;
-        let r = (x + ROUND) - ROUND;
-        let a = round_small(x) + (r < x) as i32;
-        let (first, last) = (self.first[k], self.last[k]);
-        let mut start = (a.max(0) as usize).max(first);
-        if !ROWS {
-            start = start.min(last + 1 - W);
-        }
-        if start > first {
-            let t = y - self.center(k, start - 1);
-            if t * t <= radius2 {
-                return Err(());
-            }
-        }
-        let c = self.centers::<W>(k, start);
-        let mut sq = [0.0f32; W];
-        for j in 0..W {
-            let t = y - c[j];
-            sq[j] = t * t;
-        }
+        let m = round_small(u - 0.5);
+        (m.saturating_sub(BACK as i32).max(0) as usize)
+            .max(self.first[k])
+            .min(self.last[k] + 1)
+    }
+
+    /// The window of a point at coordinate `y` on axis `k` (which must be [`Self::windowed`]): its
+    /// [`LANES`] cells judged by the exact per-axis test in a few branch-free vector operations.
+    /// A point outside the region (or a NaN) gets a window with `len == 0`.
+    #[inline(never)]
+    pub fn window(&self, k: usize, y: f32, radius2: f32) -> Window {
+        let start = self.window_start(k, y);
+        let c = self.centers::<LANES>(k, start);
         let mut pass = 0u32;
-        if ROWS {
-            for (j, &s) in sq.iter().enumerate() {
-                pass |= ((s <= radius2) as u32) << j;
-            }
-            if pass == 0 {
-                return Ok(None);
-            }
+        for (j, &c) in c.iter().enumerate() {
+            let t = y - c;
+            pass |= ((t * t <= radius2) as u32) << j;
         }
-        Ok(Some(Run { start, sq, pass }))
+        Window::new(start, pass)
     }
 
     /// Cells of the region along axis `k`.

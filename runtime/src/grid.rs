@@ -87,7 +87,7 @@ impl Prepared<'_> {
     /// cost of one traversal for the whole region.
     ///
     /// Scratch lives on the stack: tables of cell centers (up to 2048 per axis, 8 KB per axis) and,
-    /// in 2D with narrow kernels, a 32 KB tile of sums — some 50 KB at most, within any thread's
+    /// in 2D, about 16 KB of pending points and pairs — some 50 KB at most, within any thread's
     /// default stack.
     pub fn point_grid(
         &self,
@@ -113,11 +113,16 @@ impl Prepared<'_> {
         let radius = kernel.sigma * kernel::TRUNCATION;
         match self.dim {
             1 => self.grid_sums(kp, radius, &region.axes::<1>(), shifts, out),
-            2 => match crate::plane::width(&region, radius) {
-                Some(4) => self.grid_plane::<4>(kp, radius, &region, &shifts, out),
-                Some(_) => self.grid_plane::<8>(kp, radius, &region, &shifts, out),
-                None => self.grid_sums(kp, radius, &region.axes::<2>(), shifts, out),
-            },
+            2 => {
+                let axes = region.axes::<2>();
+                if crate::plane::fits(&axes, radius) {
+                    let mut batch = Batch::new();
+                    self.grid_plane(kp, radius, &axes, shifts, &mut batch, out);
+                    batch.flush(kp, self.has_color, out);
+                } else {
+                    self.grid_sums(kp, radius, &axes, shifts, out)
+                }
+            }
             3 => self.grid_sums(kp, radius, &region.axes::<3>(), shifts, out),
             _ => self.grid_sums(kp, radius, &region.axes::<4>(), shifts, out),
         }

@@ -123,7 +123,6 @@ pub(crate) fn fold_sample(wrap: Wrap, mut s: Sample) -> Sample {
 
 /// Integer shifts `m` with `m_k ∈ ranges[k]` on the first `dim` axes (0 on the others), as `f32`
 /// vectors, axis 0 fastest: the one order every periodic query uses.
-#[derive(Clone)]
 pub(crate) struct Shifts {
     lo: [i32; MAX_DIM],
     hi: [i32; MAX_DIM],

@@ -1,178 +1,210 @@
 //! The 2D fast paths of region queries: when the kernel is narrow (truncation radius up to 2.4
-//! cells, σ up to 0.8 cell: the usual image case) a point reaches a block of at most `W × W` cells
-//! (`W = 4` up to a radius of 1.5 cells, σ = 0.5 cell; 8 beyond), so each point is handled by a
-//! fixed-shape, branch-free computation on `W`-wide rows — the shape the compiler turns into SIMD.
+//! cells, σ up to 0.8 cell: the usual image case) a point reaches at most a 4×4 block of cells, so
+//! each point is handled by a fixed-shape, branch-free computation on 4-wide rows — the shape the
+//! compiler turns into SIMD.
 //!
-//! Per point: one [`Run`] per axis (`Axes::run`: the block's cells placed by arithmetic, judged by
-//! the exact per-axis test, its two neighbours checked so that no passing cell lies outside it),
-//! then one row of `W` cells per passing row. Lanes that fail the full cutoff test add nothing:
-//! each row is *subtracted* from the cells as the negated terms masked to `+0.0` ([`masked`]), and
-//! `x − (−v) = x + v` while `x − (+0.0) = x` for every float `x` (−0.0 included), so each cell gets
-//! exactly the terms, in point order, of the per-cell reference: `point::point` for
-//! [`Prepared::point_grid`], `splat::splat_cells` for the splat. A point whose passing cells are
-//! not confirmed inside its block (a tie in rounding) takes the general path, in its turn.
-//!
-//! The point grid's terms are exact weights, one per (point, cell), so its rows are whole vectors
-//! of exponentials; its sums go to a tile of four planes on the stack (density and three color
-//! channels, `W` consecutive floats per row: one vector operation per plane), and a region is cut
-//! into tiles of at most [`TILE`] cells, one traversal each. The splat's terms are products of
-//! per-axis factors (two vectors of `W` exponentials per point), added straight into the caller's
-//! density and interleaved-RGB buffers.
+//! Per point: one window per axis (`footprint::Window`: eight cells judged by the exact per-axis
+//! test at once), a block of four cells of axis 0 from the first passing cell (moved left at the
+//! region's right end, so it never leaves the region), and one row per passing cell of axis 1.
+//! Points are gathered in chunks of [`CHUNK`] so that the kernel weights of a whole chunk come from
+//! one long vector loop. The splat then adds each point's rows to the cells, lanes that fail the
+//! full cutoff test adding `-0.0`, which leaves every float unchanged (see [`kept`]); the point
+//! grid packs the passing (point, cell) pairs of the chunk first and weighs those only (an exact
+//! exponential each). Either way each cell gets exactly the terms, in the same order, of the
+//! per-cell reference: `point::point` for [`Prepared::point_grid`], `splat::splat_cells` for the
+//! splat.
+//! Points whose span on an axis is wider than four cells (possible only near the window radius)
+//! take the general paths, after the pending chunk.
 
-use crate::footprint::{windowed, Axes, Run};
-use crate::grid::Region;
+use crate::footprint::Axes;
+use crate::grid::Batch;
 use crate::kernel;
 use crate::periodic::Shifts;
 use crate::point::PointValue;
 use crate::prepared::Prepared;
 
-/// The widest block ([`width`]).
-const MAX_W: usize = 8;
+/// Cells of a block row, and most rows of a block.
+const B: usize = 4;
 
-/// Cells of a point-grid tile: four planes of this many `f32` (32 KB) on the stack.
-const TILE: usize = 2048;
+/// Points whose blocks wait for their weights together.
+const CHUNK: usize = 32;
 
-/// Widest tile of a point grid (cells along axis 0); tiles are as square as this allows, so the
-/// margin each tile's traversal also visits stays small.
-const TILE_WIDTH: usize = 64;
+/// Whether a region can take the 2D paths for a kernel of truncation radius `radius`.
+pub(crate) fn fits(axes: &Axes<2>, radius: f32) -> bool {
+    axes.windowed(0, radius) && axes.windowed(1, radius) && axes.size(0) >= B
+}
 
-/// The block width for a kernel of truncation radius `radius` on a 2D region (checked by
-/// `Region::cells`) that the block paths may take, or `None`: `W` cells hold every passing cell of
-/// an axis while `2·rc <= W − 1` (`rc` the radius in cells), and a block row must fit the region.
-pub(crate) fn width(region: &Region, radius: f32) -> Option<usize> {
-    let ok = |k: usize| windowed(region.res[k], region.size[k], radius);
-    if !(ok(0) && ok(1)) {
-        return None;
+/// A point's block: `rows` rows of four cells, the first at buffer offset `at` and the next ones
+/// a row stride apart; `sq` holds the squared distances along axis 0 of the four columns, then
+/// along axis 1 of the four rows (`+∞` past the region).
+#[derive(Clone, Copy)]
+struct Block {
+    at: usize,
+    rows: usize,
+    sq: [f32; 2 * B],
+}
+
+/// The block of a point at (`x`, `y`): `Ok(None)` if it reaches no cell of the region, `Err(())` if
+/// its span is wider than a block (the caller takes a general path).
+#[inline(always)]
+fn block(axes: &Axes<2>, x: f32, y: f32, radius2: f32) -> Result<Option<Block>, ()> {
+    let wx = axes.window(0, x, radius2);
+    let wy = axes.window(1, y, radius2);
+    if wx.len == 0 || wy.len == 0 {
+        return Ok(None);
     }
-    let rc = (radius * region.res[0] as f32).max(radius * region.res[1] as f32);
-    let w = if rc <= 1.5 { 4 } else { 8 };
-    (region.size[0] as usize >= w).then_some(w)
+    if wx.len > B || wy.len > B {
+        return Err(());
+    }
+    let s = wx.first().min(axes.last[0] + 1 - B);
+    let cx = axes.centers::<B>(0, s);
+    let cy = axes.centers::<B>(1, wy.first());
+    let mut sq = [0.0f32; 2 * B];
+    for i in 0..B {
+        let (t, u) = (x - cx[i], y - cy[i]);
+        sq[i] = t * t;
+        sq[B + i] = u * u;
+    }
+    Ok(Some(Block {
+        at: (wy.first() - axes.first[1]) * axes.stride[1] + (s - axes.first[0]),
+        rows: wy.len,
+        sq,
+    }))
 }
 
-/// `v` if `keep`, else `+0.0`, as bit operations so that rows of lanes vectorize.
+/// `v` if `keep`, else `−0.0`, as bit operations so that rows of lanes vectorize: `x + (−0.0) = x`
+/// for every float `x` (including `−0.0` and NaN), so a dropped lane adds nothing, even to a caller's
+/// buffer that held `−0.0`.
 #[inline(always)]
-fn masked(keep: bool, v: f32) -> f32 {
-    f32::from_bits(v.to_bits() & 0u32.wrapping_sub(keep as u32))
+fn kept(keep: bool, v: f32) -> f32 {
+    let m = 0u32.wrapping_sub(keep as u32);
+    f32::from_bits((v.to_bits() & m) | ((-0.0f32).to_bits() & !m))
 }
 
-/// The two runs of a point at (`x`, `y`): `Ok(None)` if it reaches no cell of the region,
-/// `Err(())` if it needs the general path.
-#[inline(always)]
-fn place<const W: usize>(
-    axes: &Axes<2>,
-    x: f32,
-    y: f32,
-    rc: [f32; 2],
-    radius2: f32,
-) -> Result<Option<(Run<W>, Run<W>)>, ()> {
-    // Rows first: a band's traversal hands over many points above or below it. Columns need no
-    // mask: a block whose columns all fail adds nothing (every lane fails the full test).
-    let Some(ry) = axes.run::<W, true>(1, y, rc[1], radius2)? else {
-        return Ok(None);
-    };
-    let Some(rx) = axes.run::<W, false>(0, x, rc[0], radius2)? else {
-        return Ok(None);
-    };
-    Ok(Some((rx, ry)))
+/// Blocks of up to [`CHUNK`] points and their colors, in point order.
+struct Chunk {
+    len: usize,
+    block: [Block; CHUNK],
+    color: [[f32; 3]; CHUNK],
 }
 
-/// Passing rows of a run: `lead..lead + len` (the per-axis test passes on one interval).
-#[inline(always)]
-fn rows<const W: usize>(r: &Run<W>) -> core::ops::Range<usize> {
-    let lead = r.pass.trailing_zeros() as usize;
-    let end = (u32::BITS - r.pass.leading_zeros()) as usize;
-    lead.min(W)..end.min(W)
-}
+impl Chunk {
+    fn new() -> Self {
+        Self {
+            len: 0,
+            block: [Block {
+                at: 0,
+                rows: 0,
+                sq: [f32::INFINITY; 2 * B],
+            }; CHUNK],
+            color: [[0.0; 3]; CHUNK],
+        }
+    }
 
-/// Kernel sums of a point-grid tile, unscaled (`density`: Σ w, `color`: Σ w·c), row-major with a
-/// row stride of the tile's width.
-struct Tile {
-    density: [f32; TILE],
-    color: [[f32; TILE]; 3],
-}
-
-impl Tile {
-    /// Adds a point's exact kernel terms to the block `rx × ry` (`at`: the block's first cell in
-    /// the tile; `stride`: the tile's width).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn add_block<const W: usize, const COLOR: bool>(
+    fn push(&mut self, b: Block, c: [f32; 3]) {
+        let at = self.len.min(CHUNK - 1);
+        self.block[at] = b;
+        self.color[at] = c;
+        self.len = at + 1;
+    }
+
+    /// Adds the splat terms of every waiting point (`color` holds their `premultiplied` colors)
+    /// and empties the chunk. A term is `splat_cells`': `g_0 · (g_1 · scale)` for the density,
+    /// `(g_0 · cm) · (g_1 · scale)` for a color channel, where the squared distance summed in axis
+    /// order passes the cutoff.
+    fn splat(
         &mut self,
-        rx: &Run<W>,
-        ry: &Run<W>,
-        at: usize,
-        stride: usize,
-        c: &[f32; 3],
         kp: kernel::Prepared,
+        scale: f32,
+        stride: usize,
+        density: &mut [f32],
+        mut color: Option<&mut [f32]>,
     ) {
-        for r in rows(ry) {
-            let t = ry.sq[r];
-            let mut r2 = [0.0f32; W];
-            for (r2, &s) in r2.iter_mut().zip(&rx.sq) {
-                // Summed in axis order, as `point::point` does.
-                *r2 = s + t;
-            }
-            let w = kp.weights(&r2);
-            let mut nw = [0.0f32; W];
-            for ((nw, &w), &r2) in nw.iter_mut().zip(&w).zip(&r2) {
-                *nw = masked(r2 <= kp.radius2, -w);
-            }
-            let row = at + r * stride;
-            if let Some(d) = self.density.get_mut(row..row + W) {
-                for (d, &v) in d.iter_mut().zip(&nw) {
-                    *d -= v;
+        let n = self.len.min(CHUNK);
+        self.len = 0;
+        if n == 0 {
+            return;
+        }
+        // Every factor of the chunk in one vector loop.
+        let mut g = [[0.0f32; 2 * B]; CHUNK];
+        for (g, b) in g.iter_mut().zip(&self.block).take(n) {
+            *g = kp.weights(&b.sq);
+        }
+        let r2max = kp.radius2;
+        for ((b, g), cm) in self.block[..n].iter().zip(&g).zip(&self.color) {
+            let (s0, g0) = (&b.sq[..B], &g[..B]);
+            // Interleaved-RGB lanes: lane `l` is cell `l / 3`, channel `l % 3`.
+            let s0c: [f32; 3 * B] = core::array::from_fn(|l| b.sq[l / 3]);
+            let gc: [f32; 3 * B] = core::array::from_fn(|l| g[l / 3] * cm[l % 3]);
+            for r in 0..b.rows.min(B) {
+                let (t, p) = (b.sq[B + r], g[B + r] * scale);
+                let at = b.at + r * stride;
+                if let Some(d) = density.get_mut(at..at + B) {
+                    for ((d, &s), &g) in d.iter_mut().zip(s0).zip(g0) {
+                        *d += kept(s + t <= r2max, g * p);
+                    }
                 }
-            }
-            if COLOR {
-                for (plane, &c) in self.color.iter_mut().zip(c) {
-                    if let Some(p) = plane.get_mut(row..row + W) {
-                        // `(−w)·c = −(w·c)`: the query's `w * c`, negated.
-                        for (p, &v) in p.iter_mut().zip(&nw) {
-                            *p -= v * c;
-                        }
+                let px = color
+                    .as_deref_mut()
+                    .and_then(|c| c.get_mut(at * 3..(at + B) * 3));
+                if let Some(px) = px {
+                    for ((px, &s), &gc) in px.iter_mut().zip(&s0c).zip(&gc) {
+                        *px += kept(s + t <= r2max, gc * p);
                     }
                 }
             }
         }
     }
 
-    /// Adds the exact kernel terms of a point the blocks do not take, cell by cell (scalar: the
-    /// rare path), to the tile whose axes are `axes`.
-    #[allow(clippy::too_many_arguments)]
-    fn add_cells(
+    /// Adds the point-query terms of every waiting point (`color` holds their color ratios) and
+    /// empties the chunk: `w = kernel::exp(r² · −1/2σ²)` with `r²` summed in axis order, added to
+    /// the density and times the color to the color sums, where `r²` passes the cutoff. The
+    /// passing (point, cell) pairs of the chunk are packed first (branch-free), so the weights
+    /// are computed for them only, in one vector loop.
+    fn grid(
         &mut self,
-        axes: &Axes<2>,
-        y: &[f32; 2],
-        c: &[f32; 3],
         kp: kernel::Prepared,
-        radius: f32,
+        stride: usize,
         has_color: bool,
+        pairs: &mut Pairs,
+        out: &mut [PointValue],
     ) {
-        let (Some((a0, b0)), Some((a1, b1))) = (
-            axes.quick(0, y[0], radius, kp.radius2),
-            axes.quick(1, y[1], radius, kp.radius2),
-        ) else {
-            return;
-        };
-        let stride = axes.size(0);
-        for j in a1..=b1 {
-            let t1 = y[1] - axes.center(1, j);
-            let t1 = t1 * t1;
-            for i in a0..=b0 {
-                let t0 = y[0] - axes.center(0, i);
-                let r2 = t0 * t0 + t1;
-                if r2 <= kp.radius2 {
-                    let w = kp.weight(r2);
-                    let cell = (j - axes.first[1]) * stride + (i - axes.first[0]);
-                    if let Some(d) = self.density.get_mut(cell) {
-                        *d += w;
-                    }
-                    if has_color {
-                        for (plane, &c) in self.color.iter_mut().zip(c) {
-                            if let Some(p) = plane.get_mut(cell) {
-                                *p += w * c;
-                            }
-                        }
+        let n = self.len.min(CHUNK);
+        self.len = 0;
+        let r2max = kp.radius2;
+        let mut len = 0usize;
+        for (p, b) in self.block[..n].iter().enumerate() {
+            for r in 0..b.rows.min(B) {
+                let t = b.sq[B + r];
+                let at = b.at + r * stride;
+                for i in 0..B {
+                    // Summed in axis order, as `point::point` does.
+                    let r2 = b.sq[i] + t;
+                    let j = len.min(PAIRS - 1);
+                    pairs.cell[j] = at + i;
+                    pairs.r2[j] = r2;
+                    pairs.point[j] = p;
+                    len = j + (r2 <= r2max) as usize;
+                }
+            }
+        }
+        let len = len.min(PAIRS);
+        let (r2, w) = (&pairs.r2[..len], &mut pairs.w[..len]);
+        for (w, &r2) in w.iter_mut().zip(r2) {
+            *w = kp.weight(r2);
+        }
+        for ((&cell, &w), &p) in pairs.cell[..len]
+            .iter()
+            .zip(&pairs.w[..len])
+            .zip(&pairs.point)
+        {
+            if let Some(v) = out.get_mut(cell) {
+                v.density += w;
+                if has_color {
+                    let c = self.color[p.min(CHUNK - 1)];
+                    for (a, c) in v.color.iter_mut().zip(c) {
+                        *a += w * c;
                     }
                 }
             }
@@ -180,101 +212,32 @@ impl Tile {
     }
 }
 
-/// Boundaries of `n` nearly equal parts of `0..len`: part `j` is `cut(j)..cut(j + 1)`.
-fn cut(len: usize, n: usize, j: usize) -> usize {
-    len * j / n.max(1)
+/// Most (point, cell) pairs of a chunk: every lane of every point's block.
+const PAIRS: usize = CHUNK * B * B;
+
+/// The passing (point, cell) pairs of a chunk: region cell, squared distance, weight and the
+/// point's place in the chunk. Scratch of [`Chunk::grid`], kept between chunks.
+struct Pairs {
+    cell: [usize; PAIRS],
+    r2: [f32; PAIRS],
+    w: [f32; PAIRS],
+    point: [usize; PAIRS],
+}
+
+impl Pairs {
+    fn new() -> Self {
+        Self {
+            cell: [0; PAIRS],
+            r2: [0.0; PAIRS],
+            w: [0.0; PAIRS],
+            point: [0; PAIRS],
+        }
+    }
 }
 
 impl Prepared<'_> {
-    /// Kernel sums (unscaled, like `grid_sums`) of a 2D region whose block width is `W`
-    /// ([`width`]): `point_grid`'s fast path. The region is cut into tiles of at most [`TILE`]
-    /// cells, each one traversal over every image in `shifts` (the region's: a superset of each
-    /// tile's, which adds nothing more), summed on the stack and copied into `out`.
-    pub(crate) fn grid_plane<const W: usize>(
-        &self,
-        kp: kernel::Prepared,
-        radius: f32,
-        region: &Region,
-        shifts: &Shifts,
-        out: &mut [PointValue],
-    ) {
-        let (rw, rh) = (region.size[0] as usize, region.size[1] as usize);
-        let nx = rw.div_ceil(TILE_WIDTH);
-        let tw = rw.div_ceil(nx);
-        let ny = rh.div_ceil((TILE / tw).max(1));
-        let mut tile = Tile {
-            density: [0.0; TILE],
-            color: [[0.0; TILE]; 3],
-        };
-        for ty in 0..ny {
-            let (y0, y1) = (cut(rh, ny, ty), cut(rh, ny, ty + 1));
-            for tx in 0..nx {
-                let (x0, x1) = (cut(rw, nx, tx), cut(rw, nx, tx + 1));
-                let mut sub = *region;
-                sub.start[0] += x0 as u32;
-                sub.start[1] += y0 as u32;
-                sub.size[0] = (x1 - x0) as u32;
-                sub.size[1] = (y1 - y0) as u32;
-                let cells = (x1 - x0) * (y1 - y0);
-                tile.density[..cells].fill(0.0);
-                if self.has_color {
-                    for p in &mut tile.color {
-                        p[..cells].fill(0.0);
-                    }
-                    self.grid_tile::<W, true>(kp, radius, &sub, shifts, &mut tile);
-                } else {
-                    self.grid_tile::<W, false>(kp, radius, &sub, shifts, &mut tile);
-                }
-                // Into the region's buffer (its end scales every cell, as for the other paths).
-                for (j, row) in (y0..y1).enumerate() {
-                    let Some(dst) = out.get_mut(row * rw + x0..row * rw + x1) else {
-                        continue;
-                    };
-                    for (i, v) in dst.iter_mut().enumerate() {
-                        let at = j * (x1 - x0) + i;
-                        v.density = tile.density.get(at).copied().unwrap_or(0.0);
-                        if self.has_color {
-                            for (a, p) in v.color.iter_mut().zip(&tile.color) {
-                                *a = p.get(at).copied().unwrap_or(0.0);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-
-    /// One tile of [`Prepared::grid_plane`]: every point near it, in order, into `tile`.
-    fn grid_tile<const W: usize, const COLOR: bool>(
-        &self,
-        kp: kernel::Prepared,
-        radius: f32,
-        sub: &Region,
-        shifts: &Shifts,
-        tile: &mut Tile,
-    ) {
-        let axes = sub.axes::<2>();
-        let rc = [radius * axes.res[0], radius * axes.res[1]];
-        let stride = axes.size(0);
-        let (f0, f1) = (axes.first[0], axes.first[1]);
-        self.walk(
-            &axes,
-            radius,
-            kp.radius2,
-            shifts.clone(),
-            |&[x, y], c| match place::<W>(&axes, x, y, rc, kp.radius2) {
-                Ok(Some((rx, ry))) => {
-                    let at = (ry.start - f1) * stride + (rx.start - f0);
-                    tile.add_block::<W, COLOR>(&rx, &ry, at, stride, c, kp);
-                }
-                Ok(None) => {}
-                Err(()) => tile.add_cells(&axes, &[x, y], c, kp, radius, COLOR),
-            },
-        );
-    }
-
-    /// Splat of a 2D region whose block width is `W` ([`width`]): `splat_region`'s fast path.
-    pub(crate) fn splat_plane<const W: usize>(
+    /// Splat of a 2D region that [`fits`]: `splat_region`'s fast path.
+    pub(crate) fn splat_plane(
         &self,
         kp: kernel::Prepared,
         radius: f32,
@@ -286,58 +249,67 @@ impl Prepared<'_> {
         let scale = kp.norm / self.n as f32;
         let mean_mass = self.mean_mass;
         let stride = axes.stride[1];
-        let rc = [radius * axes.res[0], radius * axes.res[1]];
-        let (f0, f1) = (axes.first[0], axes.first[1]);
+        let mut chunk = Chunk::new();
         self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| {
             let cm = crate::splat::premultiplied(c, mean_mass);
-            match place::<W>(axes, x, y, rc, kp.radius2) {
-                Ok(Some((rx, ry))) => {
-                    // The factors of both axes (`splat_cells`' `g_0`, `g_1`), negated along axis 0:
-                    // `(−g_0)·p = −(g_0·p)` and `((−g_0)·c)·p = −((g_0·c)·p)`.
-                    let gx = kp.weights(&rx.sq);
-                    let gy = kp.weights(&ry.sq);
-                    let ng: [f32; W] = core::array::from_fn(|i| -gx[i]);
-                    // Interleaved RGB: lane `l` is cell `l / 3`, channel `l % 3` (tabulated once
-                    // per point, so that each row is one straight vector loop).
-                    let mut sqc = [0.0f32; 3 * MAX_W];
-                    let mut ngc = [0.0f32; 3 * MAX_W];
-                    for i in 0..W {
-                        for ch in 0..3 {
-                            sqc[3 * i + ch] = rx.sq[i];
-                            ngc[3 * i + ch] = ng[i] * cm[ch];
-                        }
+            match block(axes, x, y, kp.radius2) {
+                Ok(Some(b)) => {
+                    if chunk.len == CHUNK {
+                        chunk.splat(kp, scale, stride, density, color.as_deref_mut());
                     }
-                    let at0 = (ry.start - f1) * stride + (rx.start - f0);
-                    for r in rows(&ry) {
-                        let (t, p) = (ry.sq[r], gy[r] * scale);
-                        let at = at0 + r * stride;
-                        if let Some(d) = density.get_mut(at..at + W) {
-                            for ((d, &s), &g) in d.iter_mut().zip(&rx.sq).zip(&ng) {
-                                *d -= masked(s + t <= kp.radius2, g * p);
-                            }
-                        }
-                        let px = color
-                            .as_deref_mut()
-                            .and_then(|c| c.get_mut(at * 3..(at + W) * 3));
-                        if let Some(px) = px {
-                            for ((px, &s), &g) in px.iter_mut().zip(&sqc).zip(&ngc) {
-                                *px -= masked(s + t <= kp.radius2, g * p);
-                            }
-                        }
-                    }
+                    chunk.push(b, cm);
                 }
                 Ok(None) => {}
-                Err(()) => crate::splat_region::splat_point(
-                    axes,
-                    &[x, y],
-                    &cm,
-                    kp,
-                    radius,
-                    scale,
-                    density,
-                    color.as_deref_mut(),
-                ),
+                Err(()) => {
+                    chunk.splat(kp, scale, stride, density, color.as_deref_mut());
+                    crate::splat_region::splat_point(
+                        axes,
+                        &[x, y],
+                        &cm,
+                        kp,
+                        radius,
+                        scale,
+                        density,
+                        color.as_deref_mut(),
+                    );
+                }
             }
         });
+        chunk.splat(kp, scale, stride, density, color);
+    }
+
+    /// Kernel sums of a 2D region that [`fits`]: `point_grid`'s fast path. Points the blocks do
+    /// not take go through `batch`; each path empties the other's pending points before adding
+    /// its own, so every cell still receives its terms in point order.
+    pub(crate) fn grid_plane(
+        &self,
+        kp: kernel::Prepared,
+        radius: f32,
+        axes: &Axes<2>,
+        shifts: Shifts,
+        batch: &mut Batch,
+        out: &mut [PointValue],
+    ) {
+        let has_color = self.has_color;
+        let stride = axes.stride[1];
+        let mut chunk = Chunk::new();
+        let mut pairs = Pairs::new();
+        self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| match block(
+            axes, x, y, kp.radius2,
+        ) {
+            Ok(Some(b)) => {
+                batch.flush(kp, has_color, out);
+                if chunk.len == CHUNK {
+                    chunk.grid(kp, stride, has_color, &mut pairs, out);
+                }
+                chunk.push(b, c);
+            }
+            Ok(None) => {}
+            Err(()) => {
+                chunk.grid(kp, stride, has_color, &mut pairs, out);
+                crate::grid::grid_point(axes, &[x, y], &c, kp, radius, has_color, batch, out);
+            }
+        });
+        chunk.grid(kp, stride, has_color, &mut pairs, out);
     }
 }

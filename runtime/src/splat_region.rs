@@ -27,7 +27,7 @@ impl Prepared<'_> {
     /// Adds the splat of the blend to the cells of `region` only: `density` (and `color`, three per
     /// cell, if given) hold the region's cells, axis 0 fastest, and receive exactly the bits that
     /// [`Prepared::splat`] (and [`crate::Blend::splat`]) add to those cells of the whole grid.
-    /// Like [`Prepared::point_grid`], it keeps its scratch on the stack (some 20 KB at most).
+    /// Like [`Prepared::point_grid`], it keeps its scratch on the stack (some 40 KB at most).
     pub fn splat_region(
         &self,
         kernel: Kernel,
@@ -62,10 +62,10 @@ impl Prepared<'_> {
             1 => self.splat_points(kp, radius, &region.axes::<1>(), shifts, density, color),
             2 => {
                 let axes = region.axes::<2>();
-                match crate::plane::width(&region, radius) {
-                    Some(4) => self.splat_plane::<4>(kp, radius, &axes, shifts, density, color),
-                    Some(_) => self.splat_plane::<8>(kp, radius, &axes, shifts, density, color),
-                    None => self.splat_points(kp, radius, &axes, shifts, density, color),
+                if crate::plane::fits(&axes, radius) {
+                    self.splat_plane(kp, radius, &axes, shifts, density, color)
+                } else {
+                    self.splat_points(kp, radius, &axes, shifts, density, color)
                 }
             }
             3 => self.splat_points(kp, radius, &region.axes::<3>(), shifts, density, color),

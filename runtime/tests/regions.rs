@@ -353,12 +353,12 @@ fn exact_points(pos: &[f32]) -> (rkyv::util::AlignedVec<16>, rkyv::util::Aligned
     (proxy, map)
 }
 
-/// The block paths place a point's block by arithmetic and confirm it with an exact test of the
-/// cell before it; points within a few ulps of the cutoff of a cell along one axis (coordinate
-/// `(n + ½ ± rc) / res`, `rc` the radius in cells, so that rounding decides whether the cell
-/// counts) and on a cell's center along the other (so the full test is decided by the tie) must
-/// still get exactly the per-cell terms: point grids equal point queries and region splats the
-/// full splat, bit for bit. (Without the neighbour test, σ = 0.8 cell at 50² fails.)
+/// The block paths place a point's cells by arithmetic and judge them by exact tests; points
+/// within a few ulps of the cutoff of a cell along one axis (coordinate `(n + ½ ± rc) / res`, `rc`
+/// the radius in cells, so that rounding decides whether the cell counts) and on a cell's center
+/// along the other (so the full test is decided by the tie) must still get exactly the per-cell
+/// terms: point grids equal point queries and region splats the full splat, bit for bit. (A block
+/// placement that trusted the arithmetic at these ties failed this test at σ = 0.8 cell, 50².)
 #[test]
 fn points_on_cutoff_ties_keep_their_bits() {
     for (res, sigma_cells) in [
