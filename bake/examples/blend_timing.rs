@@ -6,7 +6,8 @@
 //! Bakes what is missing first. Prints the median time of each method over REPEATS runs (default 20),
 //! single-threaded and with all threads (whole renders: mixing the weights, region queries in bands,
 //! shading), their ratio, and the runtime alone on one thread (mixing, whole-image point grid,
-//! whole-image splat), so figures are comparable within one run.
+//! whole-image splat; and the mixing's two halves on two threads), so figures are comparable within
+//! one run.
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
@@ -115,6 +116,26 @@ fn main() -> anyhow::Result<()> {
         )?;
         Ok(())
     })?;
+    // Its two halves on two threads (what the renders do); wall time only.
+    let mut wall = Vec::new();
+    for _ in 0..repeats {
+        let t = Instant::now();
+        let [p, c, b, nc] = &mut buffers;
+        blend.prepare_with(
+            &weights,
+            PreparedBuffers {
+                positions: p,
+                colors: c,
+                node_boxes: b,
+                node_colors: nc,
+            },
+            |geometry, color| {
+                rayon::join(geometry, color);
+            },
+        )?;
+        wall.push(t.elapsed().as_secs_f64());
+    }
+    let prepare_joined = median(wall);
     let [p, c, b, nc] = &mut buffers;
     let prep = blend.prepare(
         &weights,
@@ -139,6 +160,11 @@ fn main() -> anyhow::Result<()> {
         Ok(())
     })?;
     println!("runtime only, 1 thread, median wall / mean CPU ms:");
+    println!(
+        "  {:32} {:7.2} / (2 threads)",
+        "Blend::prepare_with rayon::join",
+        prepare_joined * 1e3
+    );
     for (name, (wall, cpu)) in [
         ("Blend::prepare", prepare),
         ("Prepared::point_grid 256x256", grid),

@@ -1,7 +1,10 @@
 //! Rendering 2D blends to images through the runtime: per-pixel point queries or one splat, then
 //! the inputs' composite rule. Both mix the weights once (`Blend::prepare`) and evaluate horizontal
-//! bands in parallel with the runtime's region queries, which equal per-pixel queries bit for bit. Everything here goes through `otbake-runtime`, exactly as an engine
-//! would, so the images are a test of the runtime too.
+//! bands in parallel with the runtime's region queries, which equal per-pixel queries (`query`) or
+//! the whole-image splat (`splat`, within the tolerance `otbake_runtime::SPLAT_TERM_TOLERANCE`
+//! documents of point queries) bit for bit, however the image is banded. Everything here goes
+//! through `otbake-runtime`, exactly as an engine would, so the images are a test of the runtime
+//! too.
 
 use crate::fsio::{read_aligned, IoError};
 use crate::imageio::Rgba;
@@ -154,11 +157,15 @@ pub fn render<'a>(
     let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
     store.resize(sizes.total(), 0.0);
     let prep = blend
-        .prepare(
+        .prepare_with(
             weights,
             sizes
                 .split(&mut store)
                 .expect("sized by PreparedSizes::total"),
+            // Its two halves (geometry, colors) on two threads: the same bits either way.
+            |geometry, color| {
+                rayon::join(geometry, color);
+            },
         )
         .map_err(runtime("--weights"))?;
     let mut res = [1u32; MAX_DIM];
@@ -169,7 +176,9 @@ pub fn render<'a>(
     let band = band_rows(h);
     match s.method {
         Method::Query => {
-            let mut values = vec![PointValue::default(); w * h];
+            let mut values = VALUES.with(|b| std::mem::take(&mut *b.borrow_mut()));
+            // Every value is overwritten by `point_grid`.
+            values.resize(w * h, PointValue::default());
             values
                 .par_chunks_mut(w * band)
                 .enumerate()
@@ -182,10 +191,15 @@ pub fn render<'a>(
                 .par_chunks_mut(4)
                 .zip(&values)
                 .for_each(|(px, v)| px.copy_from_slice(&shade(rule, v.mass, v.color)));
+            VALUES.with(|b| *b.borrow_mut() = values);
         }
         Method::Splat => {
-            let mut density = vec![0.0f32; w * h];
-            let mut color = vec![0.0f32; w * h * 3];
+            let (mut density, mut color) = SPLAT.with(|b| std::mem::take(&mut *b.borrow_mut()));
+            // A splat adds to its buffers: start from zeros.
+            density.clear();
+            density.resize(w * h, 0.0);
+            color.clear();
+            color.resize(w * h * 3, 0.0);
             let has_color = prep.has_color();
             density
                 .par_chunks_mut(w * band)
@@ -205,6 +219,7 @@ pub fn render<'a>(
                     let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
                     px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
                 });
+            SPLAT.with(|b| *b.borrow_mut() = (density, color));
         }
     }
     PREPARED.with(|b| *b.borrow_mut() = store);
@@ -214,6 +229,13 @@ pub fn render<'a>(
 thread_local! {
     /// Prepared-blend buffers reused by [`render`] on this thread.
     static PREPARED: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Point values of the last `query` image rendered on this thread (reused, like `PREPARED`:
+    /// fresh megabytes per image cost page faults on every image).
+    static VALUES: std::cell::RefCell<Vec<PointValue>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Density and color buffers of the last `splat` image rendered on this thread.
+    #[allow(clippy::type_complexity)]
+    static SPLAT: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the

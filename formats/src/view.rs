@@ -34,7 +34,9 @@ impl Grid {
     }
 }
 
-/// Little-endian `f32` values of a byte field.
+/// Little-endian `f32` values of a byte field. Inlined into callers so that the chunk size is a
+/// known constant there and loops mixing these streams vectorize.
+#[inline]
 pub fn f32s(bytes: &[u8]) -> impl Iterator<Item = f32> + '_ {
     bytes
         .chunks_exact(4)
@@ -280,18 +282,21 @@ impl<'a> MapView<'a> {
     }
 
     /// The position coordinates in order when they are stored as `f32` (a plain stream to mix).
+    #[inline]
     pub fn positions_f32(&self) -> Option<impl Iterator<Item = f32> + 'a> {
         let bytes: &'a [u8] = &self.archived.positions;
         (self.storage.positions == Precision::F32).then(|| f32s(bytes))
     }
 
     /// The color values in order when they are stored as `f32`.
+    #[inline]
     pub fn colors_f32(&self) -> Option<impl Iterator<Item = f32> + 'a> {
         let bytes: &'a [u8] = &self.archived.colors;
         (self.storage.colors == Some(Precision::F32)).then(|| f32s(bytes))
     }
 
     /// The internal node box values in order when they are stored as `f32`.
+    #[inline]
     pub fn internal_boxes_f32(&self) -> Option<impl Iterator<Item = f32> + 'a> {
         let bytes: &'a [u8] = &self.archived.node_boxes;
         (self.storage.node_boxes == Precision::F32).then(|| f32s(bytes))
@@ -489,6 +494,7 @@ impl<'a> MapView<'a> {
     }
 
     /// The stored internal node color sums, in order (`node·3 + channel`; empty when absent).
+    #[inline]
     pub fn internal_colors(&self) -> impl Iterator<Item = f32> + 'a {
         let v: &'a [f32_le] = &self.archived.node_colors;
         v.iter().map(|x| x.to_native())

@@ -7,9 +7,14 @@
 //! passed on every call so they may change from one query point to the next.
 //!
 //! When weights stay fixed for many queries (a frame, an image), [`Blend::prepare`] mixes them once
-//! into caller-owned buffers; the [`Prepared`] blend answers the same queries with the same bits,
+//! into caller-owned buffers ([`Blend::prepare_with`] runs its two halves through the caller's
+//! `join`, e.g. on two threads); the [`Prepared`] blend answers the same queries with the same bits,
 //! and region queries ([`Prepared::point_grid`], [`Prepared::splat_region`]) evaluate a whole box of
 //! grid cells in one traversal, so a renderer can hand bands or tiles to its own threads.
+//!
+//! Point queries and point grids are exact; a splat weighs each point by a product of per-axis
+//! Gaussian factors, which equals the point query at each cell center within the tolerance
+//! [`SPLAT_TERM_TOLERANCE`] states (see [`Blend::splat`]).
 //!
 //! Maps may be stored in full or quantized ([`Storage`]: `u16`/`u8` positions and colors, `u16`
 //! node boxes, optional colors and node color sums), and maps of any storage blend together: queries
@@ -70,13 +75,16 @@
 mod archive;
 mod blend;
 mod error;
+mod footprint;
 mod grid;
 mod kernel;
 mod periodic;
+mod plane;
 mod point;
 mod prepared;
 mod range;
 mod splat;
+mod splat_region;
 mod stack;
 
 pub use archive::{Map, Proxy};
@@ -89,4 +97,4 @@ pub use otbake_formats::{Composite, Wrap, MAX_DIM};
 pub use point::PointValue;
 pub use prepared::{Prepared, PreparedBuffers, PreparedSizes};
 pub use range::RangeValue;
-pub use splat::SplatTarget;
+pub use splat::{SplatTarget, SPLAT_TERM_TOLERANCE};

@@ -12,8 +12,9 @@ use crate::kernel::Kernel;
 use crate::point::PointValue;
 use crate::range::RangeValue;
 use crate::splat::{check_target, SplatTarget};
+use crate::stack::Stack;
 use crate::MAX_DIM;
-use otbake_formats::tree::{internal_count, node_at, node_count, Node};
+use otbake_formats::tree::{internal_count, node_count, Node};
 use otbake_formats::Wrap;
 
 /// How many `f32` each buffer of [`PreparedBuffers`] needs (see [`Blend::prepared_sizes`]).
@@ -82,9 +83,6 @@ pub struct Prepared<'b> {
     pub(crate) mean_mass: f32,
     /// The domain; a periodic blend's queries see every image of its points ([`crate::periodic`]).
     pub(crate) wrap: Wrap,
-    /// Subtracted from every position and box by region traversals: the image of the blend a
-    /// periodic region query is visiting (zero otherwise).
-    pub(crate) shift: [f32; MAX_DIM],
     pub(crate) positions: &'b [f32],
     pub(crate) colors: &'b [f32],
     pub(crate) node_boxes: &'b [f32],
@@ -94,6 +92,7 @@ pub struct Prepared<'b> {
 /// `out[j] (+)= w · v_j` for one map: with `first`, `0.0 + w·v` (the bits of `mix`'s first step) in
 /// one pass; entries the stream does not reach (none, for validated archives) become 0, as `mix`
 /// would leave them.
+#[inline(always)]
 fn mix_stream(out: &mut [f32], w: f32, first: bool, values: impl Iterator<Item = f32>) {
     if first {
         let mut len = 0;
@@ -120,6 +119,65 @@ fn mix_decoded(out: &mut [f32], first: bool, add: impl FnOnce(&mut [f32])) {
     add(out);
 }
 
+/// The leaves' entries of `node_boxes`: the box of each leaf's blended points, exactly as `Blend`
+/// computes it on the fly (the same [`leaf_box`]). One depth-first walk visits every node once,
+/// rather than a descent from the root per leaf.
+fn leaf_boxes<const D: usize>(n: u32, depth: u32, positions: &[f32], node_boxes: &mut [f32]) {
+    for_each_leaf(n, depth, |leaf| {
+        let (first, at, range) = (leaf.start as usize, leaf.index as usize, leaf.range());
+        let points = positions.get(range.start * D..range.end * D);
+        let point = |i: usize| {
+            let mut out = [0.0; MAX_DIM];
+            let j = (i - first) * D;
+            if let Some(s) = points.and_then(|p| p.get(j..j + D)) {
+                out[..D].copy_from_slice(s);
+            }
+            out
+        };
+        let mut lo = [0.0; MAX_DIM];
+        let mut hi = [0.0; MAX_DIM];
+        leaf_box(D, leaf, point, &mut lo, &mut hi);
+        if let Some(b) = node_boxes.get_mut(at * 2 * D..(at + 1) * 2 * D) {
+            b[..D].copy_from_slice(&lo[..D]);
+            b[D..].copy_from_slice(&hi[..D]);
+        }
+    });
+}
+
+/// The leaves' entries of `node_colors`: the sum of each leaf's blended colors in point order,
+/// as `Blend` computes it on the fly.
+fn leaf_sums(n: u32, depth: u32, colors: &[f32], node_colors: &mut [f32]) {
+    for_each_leaf(n, depth, |leaf| {
+        let (at, range) = (leaf.index as usize, leaf.range());
+        let mut sum = [0.0f32; 3];
+        if let Some(c) = colors.get(range.start * 3..range.end * 3) {
+            for c in c.chunks_exact(3) {
+                for (s, v) in sum.iter_mut().zip(c) {
+                    *s += v;
+                }
+            }
+        }
+        if let Some(o) = node_colors.get_mut(at * 3..at * 3 + 3) {
+            o.copy_from_slice(&sum);
+        }
+    });
+}
+
+/// Calls `f` for every leaf (every node of level `depth`, with points or not), left to right.
+#[inline(always)]
+fn for_each_leaf(n: u32, depth: u32, mut f: impl FnMut(Node)) {
+    let mut stack = Stack::new(Node::root(n));
+    while let Some(node) = stack.pop() {
+        if node.level < depth {
+            let (l, r) = node.children();
+            stack.push(r);
+            stack.push(l);
+        } else {
+            f(node);
+        }
+    }
+}
+
 impl<'a> Blend<'a, '_> {
     /// Buffer sizes [`Blend::prepare`] needs.
     pub fn prepared_sizes(&self) -> PreparedSizes {
@@ -142,11 +200,28 @@ impl<'a> Blend<'a, '_> {
     /// Mixes the blend for `weights` into `buffers` once, for as many queries as the caller likes,
     /// decoding quantized maps on the way (queries then read plain `f32` arrays). Costs one pass over
     /// every map (about `k · (dim + 3) · n` multiply-adds) and one over the leaves; worth it from a
-    /// few hundred point queries on, or for any splat or region query.
+    /// few hundred point queries on, or for any splat or region query. [`Blend::prepare_with`]
+    /// runs its two halves on two threads.
     pub fn prepare<'b>(
         &self,
         weights: &[f32],
         buffers: PreparedBuffers<'b>,
+    ) -> Result<Prepared<'b>, Error> {
+        self.prepare_with(weights, buffers, |geometry, color| {
+            geometry();
+            color();
+        })
+    }
+
+    /// [`Blend::prepare`], with its two independent halves — positions, node boxes and leaf boxes;
+    /// colors and node color sums — handed to `join`, which may run them at the same time (with
+    /// rayon: `|a, b| { rayon::join(|| a(), || b()); }`). Each half writes its own buffers, so the
+    /// result is the same bits however they run; a half that `join` does not call is run after it.
+    pub fn prepare_with<'b>(
+        &self,
+        weights: &[f32],
+        buffers: PreparedBuffers<'b>,
+        join: impl FnOnce(&mut (dyn FnMut() + Send), &mut (dyn FnMut() + Send)),
     ) -> Result<Prepared<'b>, Error> {
         self.check_weights(weights)?;
         let sizes = self.prepared_sizes();
@@ -167,63 +242,61 @@ impl<'a> Blend<'a, '_> {
         let colors = take(colors, sizes.colors)?;
         let node_boxes = take(node_boxes, sizes.node_boxes)?;
         let node_colors = take(node_colors, sizes.node_colors)?;
-        let (d, depth) = (self.dim, self.depth);
+        let (d, n, depth) = (self.dim, self.n, self.depth);
         let internal = internal_count(depth) as usize;
-        let (inner_boxes, _) = node_boxes.split_at_mut((internal * 2 * d).min(node_boxes.len()));
-        let (inner_colors, _) = node_colors.split_at_mut((internal * 3).min(node_colors.len()));
-        for (k, (&w, m)) in weights.iter().zip(self.maps).enumerate() {
-            let first = k == 0;
-            let v = m.view();
-            match v.positions_f32() {
-                Some(values) => mix_stream(positions, w, first, values),
-                None => mix_decoded(positions, first, |o| v.add_positions(w, o)),
-            }
-            match v.internal_boxes_f32() {
-                Some(values) => mix_stream(inner_boxes, w, first, values),
-                None => mix_decoded(inner_boxes, first, |o| v.add_internal_boxes(w, o)),
-            }
-            if self.has_color {
-                match v.colors_f32() {
-                    Some(values) => mix_stream(colors, w, first, values),
-                    None => mix_decoded(colors, first, |o| v.add_colors(w, o)),
-                }
-                if !inner_colors.is_empty() {
-                    mix_stream(inner_colors, w, first, v.internal_colors());
-                }
-            }
-        }
-        // Leaves: the box of their blended points and the sum of their blended colors, exactly as
-        // `Blend` computes them on the fly.
-        let read = |buf: &[f32], i: usize, len: usize| {
-            let mut out = [0.0; MAX_DIM];
-            if let Some(s) = buf.get(i * len..i * len + len) {
-                out[..len].copy_from_slice(s);
-            }
-            out
-        };
         let with_sums = node_colors.len() >= node_count(depth) as usize * 3 && self.has_color;
-        for offset in 0..1u64 << depth {
-            let leaf = node_at(self.n, depth, offset as u32);
-            let at = leaf.index as usize;
-            let mut lo = [0.0; MAX_DIM];
-            let mut hi = [0.0; MAX_DIM];
-            leaf_box(d, leaf, |i| read(positions, i, d), &mut lo, &mut hi);
-            if let Some(b) = node_boxes.get_mut(at * 2 * d..(at + 1) * 2 * d) {
-                b[..d].copy_from_slice(&lo[..d]);
-                b[d..].copy_from_slice(&hi[..d]);
-            }
-            if with_sums {
-                let mut sum = [0.0f32; 3];
-                for i in leaf.range() {
-                    let c = read(colors, i, 3);
-                    for (s, v) in sum.iter_mut().zip(c) {
-                        *s += v;
+        {
+            let (positions, node_boxes) = (&mut *positions, &mut *node_boxes);
+            let (colors, node_colors) = (&mut *colors, &mut *node_colors);
+            let mut geometry_done = false;
+            let mut geometry = || {
+                if core::mem::replace(&mut geometry_done, true) {
+                    return;
+                }
+                let inner = (internal * 2 * d).min(node_boxes.len());
+                let (inner_boxes, _) = node_boxes.split_at_mut(inner);
+                for (k, (&w, m)) in weights.iter().zip(self.maps).enumerate() {
+                    let (first, v) = (k == 0, m.view());
+                    match v.positions_f32() {
+                        Some(values) => mix_stream(positions, w, first, values),
+                        None => mix_decoded(positions, first, |o| v.add_positions(w, o)),
+                    }
+                    match v.internal_boxes_f32() {
+                        Some(values) => mix_stream(inner_boxes, w, first, values),
+                        None => mix_decoded(inner_boxes, first, |o| v.add_internal_boxes(w, o)),
                     }
                 }
-                if let Some(o) = node_colors.get_mut(at * 3..at * 3 + 3) {
-                    o.copy_from_slice(&sum);
+                match d {
+                    1 => leaf_boxes::<1>(n, depth, positions, node_boxes),
+                    2 => leaf_boxes::<2>(n, depth, positions, node_boxes),
+                    3 => leaf_boxes::<3>(n, depth, positions, node_boxes),
+                    _ => leaf_boxes::<4>(n, depth, positions, node_boxes),
                 }
-            }
+            };
+            let mut color_done = false;
+            let mut color = || {
+                if core::mem::replace(&mut color_done, true) || !self.has_color {
+                    return;
+                }
+                let inner = (internal * 3).min(node_colors.len());
+                let (inner_colors, _) = node_colors.split_at_mut(inner);
+                for (k, (&w, m)) in weights.iter().zip(self.maps).enumerate() {
+                    let (first, v) = (k == 0, m.view());
+                    match v.colors_f32() {
+                        Some(values) => mix_stream(colors, w, first, values),
+                        None => mix_decoded(colors, first, |o| v.add_colors(w, o)),
+                    }
+                    if !inner_colors.is_empty() {
+                        mix_stream(inner_colors, w, first, v.internal_colors());
+                    }
+                }
+                if with_sums {
+                    leaf_sums(n, depth, colors, node_colors);
+                }
+            };
+            join(&mut geometry, &mut color);
+            geometry();
+            color();
         }
         Ok(Prepared {
             dim: self.dim,
@@ -233,7 +306,6 @@ impl<'a> Blend<'a, '_> {
             missing_node_colors: self.missing_node_colors,
             mean_mass: self.mean_mass(weights),
             wrap: self.wrap,
-            shift: [0.0; MAX_DIM],
             positions,
             colors,
             node_boxes,

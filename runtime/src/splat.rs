@@ -1,10 +1,44 @@
 //! Splatting: the whole blend reconstructed on a regular grid in one pass over the points, the fast
 //! way to make an image or volume of a blend (paper §5.2, Fig. 6).
+//!
+//! The splat weighs a point by per-axis factors instead of the point query's single exponential;
+//! [`SPLAT_TERM_TOLERANCE`] documents the weight and how far it is from a point query. A splat of a
+//! region equals the same cells of the full splat bit for bit, however the grid is split.
 
 use crate::blend::{Blend, Source};
 use crate::error::Error;
+use crate::footprint::Axes;
 use crate::kernel::{Kernel, Prepared};
 use crate::MAX_DIM;
+
+/// How far a splat may be from point queries: the relative bound on the difference between one
+/// splat term and the corresponding point-query term.
+///
+/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`) counts a point at
+/// exactly the cells a point query at the cell's center counts it (squared distance
+/// `r² = Σ_k t_k²`, summed in axis order, `<=` the squared cutoff radius), but weighs it by a
+/// product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
+/// `g_k = exp(−t_k² / 2σ²)` and `scale = norm / n` (a color channel: `(g_0 · c · mean mass) · P`),
+/// instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact arithmetic the two
+/// are equal (the Gaussian is separable); the product lets a splat compute `d` small tables of
+/// factors per point instead of an exponential per (point, cell) pair, which is what makes
+/// whole-image splats cheap.
+///
+/// In floats they differ by rounding. With `u = 2⁻²⁴` and exponents `|x| <= 4.5` inside the cutoff:
+/// the point query's exponent carries at most `4.5·d·u` of rounding (the `d − 1` additions of `r²`
+/// and the product by `−1/2σ²`), the splat's `d` exponents together `4.5·u` (each is rounded once
+/// and they sum to the point query's), every `exp` 3e-7 relative (tested in `kernel.rs`: one for
+/// the query, `d` for the splat), and the splat's `d` products `u` each: at most 3.1e-6 per term in
+/// 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
+/// Summing `m` terms in `f32`, in the same order, adds at most `m·u` relative error to each of the
+/// two sums, so for a cell that `m` points reach
+///
+/// `|splat − point query| <= (SPLAT_TERM_TOLERANCE + 2m·2⁻²⁴) · Σ |terms|`
+///
+/// for the density and for each color channel. `runtime/tests/regions.rs`
+/// (`splats_are_point_queries_within_the_stated_tolerance`) checks exactly this bound in 1–3
+/// dimensions. Point queries and `Prepared::point_grid` are exact: use them where bits matter.
+pub const SPLAT_TERM_TOLERANCE: f32 = 1e-5;
 
 /// A caller-owned grid over [0,1]^d to splat into. Cell `idx` has its center at `(idx + 0.5) / res`
 /// per axis; axis 0 varies fastest in the buffers.
@@ -19,8 +53,10 @@ pub struct SplatTarget<'b> {
 
 impl Blend<'_, '_> {
     /// Adds the kernel reconstruction of the blend for `weights` to every cell center of `target`:
-    /// the result equals a point query at each cell center (up to float summation order). On a
-    /// periodic blend every point's kernel wraps around the grid's borders.
+    /// each cell gets the density and color a point query at its center returns, within the
+    /// tolerance [`SPLAT_TERM_TOLERANCE`] states (the splat weighs each point by a product of
+    /// per-axis Gaussian factors; it counts exactly the points a query counts). On a periodic
+    /// blend every point's kernel wraps around the grid's borders.
     pub fn splat(
         &self,
         weights: &[f32],
@@ -82,8 +118,25 @@ pub(crate) fn check_target(
     Ok(cells)
 }
 
-/// Splats every point of `s` into a checked target (the reference the region splat must equal).
+/// Splats every point of `s` into a checked target, one point at a time, leaf by leaf: the
+/// reference the region splat must equal.
 pub(crate) fn splat(
+    s: &impl Source,
+    kernel: Kernel,
+    kp: Prepared,
+    res: &[u32; MAX_DIM],
+    density: &mut [f32],
+    color: Option<&mut [f32]>,
+) {
+    match s.dim() {
+        1 => splat_dim::<1>(s, kernel, kp, res, density, color),
+        2 => splat_dim::<2>(s, kernel, kp, res, density, color),
+        3 => splat_dim::<3>(s, kernel, kp, res, density, color),
+        _ => splat_dim::<4>(s, kernel, kp, res, density, color),
+    }
+}
+
+fn splat_dim<const D: usize>(
     s: &impl Source,
     kernel: Kernel,
     kp: Prepared,
@@ -91,91 +144,145 @@ pub(crate) fn splat(
     density: &mut [f32],
     mut color: Option<&mut [f32]>,
 ) {
-    let d = s.dim();
+    let axes = Axes::<D>::new(&res[..D], &[0; D], &res[..D]);
+    let radius = kernel.sigma * crate::kernel::TRUNCATION;
     let scale = kp.norm / s.n() as f32;
     let mean_mass = s.mean_mass();
-    let radius = kernel.sigma * crate::kernel::TRUNCATION;
-    let mut stride = [0usize; MAX_DIM];
-    let mut step = 1;
-    for k in 0..d {
-        stride[k] = step;
-        step *= res[k] as usize;
-    }
-    // Points in index order, leaf by leaf (a point's leaf locates its stored grid).
     let depth = s.depth();
-    let leaves = 1u64 << depth;
-    let points = (0..leaves).flat_map(|offset| {
-        let leaf = otbake_formats::tree::node_at(s.n(), depth, offset as u32);
-        leaf.range().map(move |i| (leaf, i))
-    });
     let mut state = s.leaf_state();
-    let mut entered = None;
-    for (leaf, i) in points {
-        if entered != Some(leaf.index) {
-            s.enter(leaf, &mut state);
-            entered = Some(leaf.index);
-        }
-        let y = s.position(&state, i);
-        let c = s.color(i);
-        // Cells whose centers can lie within the radius, clamped to the grid.
-        let mut first = [0usize; MAX_DIM];
-        let mut last = [0usize; MAX_DIM];
-        let mut empty = false;
-        for k in 0..d {
-            let r = res[k] as f32;
-            // Clamped before rounding so the integer conversions stay in range.
-            let a = ceil(((y[k] - radius) * r - 0.5).clamp(-1.0, r));
-            let b = floor(((y[k] + radius) * r - 0.5).clamp(-1.0, r)).min(res[k] as i64 - 1);
-            let a = a.max(0);
-            if a > b {
-                empty = true;
-                break;
+    for offset in 0..1u64 << depth {
+        let leaf = otbake_formats::tree::node_at(s.n(), depth, offset as u32);
+        s.enter(leaf, &mut state);
+        for i in leaf.range() {
+            let p = s.position(&state, i);
+            let y: [f32; D] = core::array::from_fn(|k| p[k]);
+            let cm = premultiplied(s.color(i), mean_mass);
+            let mut lo = [0usize; D];
+            let mut hi = [0usize; D];
+            let mut empty = false;
+            for k in 0..D {
+                match axes.quick(k, y[k], radius, kp.radius2) {
+                    Some((a, b)) => (lo[k], hi[k]) = (a, b),
+                    None => empty = true,
+                }
             }
-            first[k] = a as usize;
-            last[k] = b as usize;
+            if !empty {
+                splat_cells(
+                    &axes,
+                    &y,
+                    &cm,
+                    &lo,
+                    &hi,
+                    kp,
+                    scale,
+                    density,
+                    color.as_deref_mut(),
+                );
+            }
         }
-        if empty {
-            continue;
+    }
+}
+
+/// A point's color ratio times the blend's mean mass: the factor of its weight in every color term.
+#[inline(always)]
+pub(crate) fn premultiplied(c: [f32; 3], mean_mass: f32) -> [f32; 3] {
+    c.map(|c| c * mean_mass)
+}
+
+/// Candidate cells per axis whose squared distances and factors [`splat_cells`] tabulates per
+/// point (kernels wider than about 30 cells compute them per cell: the same values).
+const TABLE: usize = 64;
+
+/// Adds a point's splat terms to every cell of the candidate box `lo..=hi` (global indices of the
+/// region `axes`, whose buffers `density` and `color` are) within the cutoff, one cell at a time,
+/// from per-axis tables of squared distances and factors (an exponential per candidate cell of
+/// each axis, not per cell of the box). The reference, and the path of kernels too wide for the
+/// region splat's blocks.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn splat_cells<const D: usize>(
+    axes: &Axes<D>,
+    y: &[f32; D],
+    cm: &[f32; 3],
+    lo: &[usize; D],
+    hi: &[usize; D],
+    kp: Prepared,
+    scale: f32,
+    density: &mut [f32],
+    mut color: Option<&mut [f32]>,
+) {
+    let mut sq = [[0.0f32; TABLE]; D];
+    let mut g = [[0.0f32; TABLE]; D];
+    let mut tabulated = [false; D];
+    for k in 0..D {
+        let len = hi[k] + 1 - lo[k];
+        if len <= TABLE {
+            tabulated[k] = true;
+            for (j, s) in sq[k].iter_mut().take(len).enumerate() {
+                let t = y[k] - axes.center(k, lo[k] + j);
+                *s = t * t;
+            }
+            for (g, &s) in g[k].iter_mut().zip(&sq[k]).take(len) {
+                *g = kp.weight(s);
+            }
         }
-        // Odometer over the cell box, axis 0 fastest.
-        let mut idx = first;
-        loop {
-            let mut r2 = 0.0f32;
-            let mut cell = 0usize;
-            for k in 0..d {
-                let center = (idx[k] as f32 + 0.5) / res[k] as f32;
-                let t = y[k] - center;
-                r2 += t * t;
-                cell += idx[k] * stride[k];
+    }
+    // Squared distance and factor of cell `i` of axis `k`.
+    let at = |k: usize, i: usize| -> (f32, f32) {
+        let j = i - lo[k];
+        match (tabulated[k], sq[k].get(j), g[k].get(j)) {
+            (true, Some(&s), Some(&g)) => (s, g),
+            _ => {
+                let t = y[k] - axes.center(k, i);
+                (t * t, kp.weight(t * t))
+            }
+        }
+    };
+    let mut idx = *lo;
+    loop {
+        // The row (axes 1..): its squared distances, its factor `P = g_1 · (… · (g_{d−1} · scale))`
+        // (multiplied from the last axis down) and its first cell.
+        let mut tails = [0.0f32; D];
+        let mut p = scale;
+        let mut row = 0usize;
+        for k in (1..D).rev() {
+            let (s, g) = at(k, idx[k]);
+            tails[k] = s;
+            p *= g;
+            row += (idx[k] - axes.first[k]) * axes.stride[k];
+        }
+        for i in lo[0]..=hi[0] {
+            let (s0, g0) = at(0, i);
+            // Summed in axis order, as `point::point` does.
+            let mut r2 = s0;
+            for t in &tails[1..] {
+                r2 += t;
             }
             if r2 <= kp.radius2 {
-                let w = kp.weight(r2) * scale;
+                let cell = row + (i - axes.first[0]);
                 if let Some(v) = density.get_mut(cell) {
-                    *v += w;
+                    *v += g0 * p;
                 }
-                if let Some(col) = color.as_deref_mut() {
-                    if let Some(px) = col.get_mut(cell * 3..cell * 3 + 3) {
-                        for (p, c) in px.iter_mut().zip(c) {
-                            *p += w * c * mean_mass;
-                        }
+                if let Some(px) = color
+                    .as_deref_mut()
+                    .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
+                {
+                    for (v, c) in px.iter_mut().zip(cm) {
+                        *v += (g0 * c) * p;
                     }
                 }
             }
-            let mut k = 0;
-            loop {
-                if k == d {
-                    break;
-                }
-                if idx[k] < last[k] {
-                    idx[k] += 1;
-                    break;
-                }
-                idx[k] = first[k];
-                k += 1;
+        }
+        let mut k = 1;
+        loop {
+            if k >= D {
+                return;
             }
-            if k == d {
+            if idx[k] < hi[k] {
+                idx[k] += 1;
                 break;
             }
+            idx[k] = lo[k];
+            k += 1;
         }
     }
 }

@@ -333,3 +333,40 @@ fn bad_buffers_and_regions_are_errors() {
         })
     ));
 }
+
+/// `prepare_with` gives `prepare`'s bits whether `join` runs the halves on two threads, in
+/// reverse order, or not at all (they then run after it), for full and quantized storages.
+#[test]
+fn prepare_with_any_join_equals_prepare() {
+    for (st, storage) in STORAGES.iter().enumerate() {
+        let f = fixture_with(11 + st as u64, 700, 2, 4, 3, [1; 32], *storage);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let w = [0.2f32, 0.45, 0.35];
+        let sizes = blend.prepared_sizes();
+        let mut want = vec![f32::NAN; sizes.total()];
+        blend.prepare(&w, sizes.split(&mut want).unwrap()).unwrap();
+        type Half<'a> = &'a mut (dyn FnMut() + Send);
+        type Join = dyn Fn(Half<'_>, Half<'_>);
+        let joins: [&Join; 3] = [
+            &|a, b| {
+                std::thread::scope(|s| {
+                    s.spawn(a);
+                    b();
+                })
+            },
+            &|a, b| {
+                b();
+                a();
+            },
+            &|_, _| {},
+        ];
+        for (j, join) in joins.iter().enumerate() {
+            let mut got = vec![f32::NAN; sizes.total()];
+            blend
+                .prepare_with(&w, sizes.split(&mut got).unwrap(), |a, b| join(a, b))
+                .unwrap();
+            assert_eq!(all_bits(&got), all_bits(&want), "storage {st}, join {j}");
+        }
+    }
+}

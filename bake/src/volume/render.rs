@@ -87,11 +87,15 @@ fn with_prepared<R>(
     let sizes = blend.prepared_sizes();
     let mut store = vec![0f32; sizes.total()];
     let prep = blend
-        .prepare(
+        .prepare_with(
             weights,
             sizes
                 .split(&mut store)
                 .expect("sized by PreparedSizes::total"),
+            // Its two halves (geometry, colors) on two threads: the same bits either way.
+            |geometry, color| {
+                rayon::join(geometry, color);
+            },
         )
         .map_err(runtime("--weights"))?;
     f(&prep)

@@ -1,0 +1,87 @@
+//! Runs one runtime call on a baked 2D manifest REPEATS times and nothing else, for profilers:
+//! `splat` (`Prepared::splat_region` of a whole 256² image at σ = 0.5 px), `grid`
+//! (`Prepared::point_grid`, same image) or `prepare` (`Blend::prepare`), equal weights.
+//!
+//! ```sh
+//! cargo run --release --example region_probe -- manifests/shapes.toml splat 100
+//! valgrind --tool=callgrind target/release/examples/region_probe manifests/shapes.toml splat 4
+//! ```
+//! Prints the minimum and median wall time per call and this thread's mean CPU time per call
+//! (Linux `schedstat`). Instruction counts per call are the difference of two callgrind runs with
+//! different REPEATS (the archives are loaded and checked once per run). Bake the manifest first
+//! (`otbake bake`, or `blend_timing`, which bakes what is missing).
+
+use otbake::manifest::Manifest;
+use otbake::render::Archives;
+use otbake_runtime::{Blend, Kernel, PointValue, Region};
+use std::time::Instant;
+
+/// CPU time this thread has run, in seconds (Linux); 0 elsewhere.
+fn thread_cpu() -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+        .map_or(0.0, |ns| ns * 1e-9)
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let (Some(path), Some(which)) = (args.get(1), args.get(2)) else {
+        anyhow::bail!("usage: region_probe MANIFEST splat|grid|prepare [REPEATS]");
+    };
+    let repeats: usize = args.get(3).map(|r| r.parse()).transpose()?.unwrap_or(100);
+    let m = Manifest::load(std::path::Path::new(path))?;
+    let archives = Archives::load(&m)?;
+    let maps = archives.maps()?;
+    let weights = vec![1.0 / maps.len() as f32; maps.len()];
+    let blend = Blend::new(archives.proxy()?, &maps)?;
+    let sizes = blend.prepared_sizes();
+    let mut store = vec![0.0f32; sizes.total()];
+    let res = [256, 256, 1, 1];
+    let kernel = Kernel { sigma: 0.5 / 256.0 };
+    let mut values = vec![PointValue::default(); 256 * 256];
+    let mut density = vec![0.0f32; 256 * 256];
+    let mut color = vec![0.0f32; 256 * 256 * 3];
+    let mut times = Vec::with_capacity(repeats);
+    let mut cpu = 0.0;
+    let mut timed = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<()> {
+        for _ in 0..repeats {
+            let (t, c) = (Instant::now(), thread_cpu());
+            f()?;
+            times.push(t.elapsed().as_secs_f64());
+            cpu += thread_cpu() - c;
+        }
+        Ok(())
+    };
+    match which.as_str() {
+        "prepare" => timed(&mut || {
+            blend.prepare(&weights, sizes.split(&mut store).expect("sized by total"))?;
+            Ok(())
+        })?,
+        "splat" | "grid" => {
+            // Prepared once: the region query alone is repeated.
+            let prep = blend.prepare(&weights, sizes.split(&mut store).expect("sized by total"))?;
+            let region = Region::full(res);
+            if which == "splat" {
+                timed(&mut || {
+                    Ok(prep.splat_region(kernel, region, &mut density, Some(&mut color))?)
+                })?
+            } else {
+                timed(&mut || Ok(prep.point_grid(kernel, region, &mut values)?))?
+            }
+        }
+        other => anyhow::bail!("unknown call {other:?}: use splat, grid or prepare"),
+    }
+    times.sort_by(f64::total_cmp);
+    let (min, median) = (
+        times.first().copied().unwrap_or(f64::NAN),
+        times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+    );
+    println!(
+        "{which}: min {:.2} ms, median {:.2} ms, mean CPU {:.2} ms over {repeats} calls",
+        min * 1e3,
+        median * 1e3,
+        cpu * 1e3 / repeats.max(1) as f64
+    );
+    Ok(())
+}

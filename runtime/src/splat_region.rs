@@ -1,0 +1,219 @@
+//! The splat of a region of a grid ([`Prepared::splat_region`]): one traversal, then each point
+//! scattered into the few cells it reaches. 2D regions with narrow kernels take `plane.rs`; this is
+//! the path of the other dimensions and of wider kernels.
+//!
+//! The splat's weight is a product of per-axis factors (see [`crate::SPLAT_TERM_TOLERANCE`]), so a
+//! point whose spans fit a block needs one small vector of factors per axis — `B` cells of axis 0,
+//! [`LANES`] cells of every other axis, each one branch-free loop the compiler vectorizes — and then
+//! one multiply per reached cell, added to `B` consecutive cells of a row at a time; wider spans
+//! go cell by cell from per-axis tables (`splat::splat_cells`).
+//!
+//! Every cell gets exactly the terms of the reference splat (`splat::splat_cells`: same cutoff test
+//! on the same squared distance, same factors, same products, same order), so a region splat equals
+//! the same cells of the full splat bit for bit. On a periodic blend that holds shift by shift:
+//! the full splat (`periodic::splat`) splats each image of the blend in turn, and the region splat
+//! visits the same images in the same order ([`Prepared::walk`] runs the shifts), so each point's
+//! kernel wraps around the grid's borders identically.
+
+use crate::error::Error;
+use crate::footprint::{Axes, Lanes, Span, LANES};
+use crate::grid::Region;
+use crate::kernel::{self, Kernel};
+use crate::periodic::Shifts;
+use crate::prepared::Prepared;
+use crate::splat::{premultiplied, splat_cells};
+
+impl Prepared<'_> {
+    /// Adds the splat of the blend to the cells of `region` only: `density` (and `color`, three per
+    /// cell, if given) hold the region's cells, axis 0 fastest, and receive exactly the bits that
+    /// [`Prepared::splat`] (and [`crate::Blend::splat`]) add to those cells of the whole grid.
+    /// Like [`Prepared::point_grid`], it keeps its scratch on the stack (some 40 KB at most).
+    pub fn splat_region(
+        &self,
+        kernel: Kernel,
+        region: Region,
+        density: &mut [f32],
+        color: Option<&mut [f32]>,
+    ) -> Result<(), Error> {
+        let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
+        let cells = region.cells(self.dim)?;
+        if density.len() != cells {
+            return Err(Error::BufferSize {
+                expected: cells,
+                found: density.len(),
+            });
+        }
+        if let Some(c) = &color {
+            if c.len() != cells * 3 {
+                return Err(Error::BufferSize {
+                    expected: cells * 3,
+                    found: c.len(),
+                });
+            }
+        }
+        // Every image of a periodic blend that can reach the region (the blend itself otherwise),
+        // visited by `walk`.
+        let shifts = crate::periodic::region_shifts(self.wrap, self, &region, kernel)?;
+        if cells == 0 {
+            return Ok(());
+        }
+        let radius = kernel.sigma * kernel::TRUNCATION;
+        match self.dim {
+            1 => self.splat_points(kp, radius, &region.axes::<1>(), shifts, density, color),
+            2 => {
+                let axes = region.axes::<2>();
+                if crate::plane::fits(&axes, radius) {
+                    self.splat_plane(kp, radius, &axes, shifts, density, color)
+                } else {
+                    self.splat_points(kp, radius, &axes, shifts, density, color)
+                }
+            }
+            3 => self.splat_points(kp, radius, &region.axes::<3>(), shifts, density, color),
+            _ => self.splat_points(kp, radius, &region.axes::<4>(), shifts, density, color),
+        }
+        Ok(())
+    }
+
+    fn splat_points<const D: usize>(
+        &self,
+        kp: kernel::Prepared,
+        radius: f32,
+        axes: &Axes<D>,
+        shifts: Shifts,
+        density: &mut [f32],
+        mut color: Option<&mut [f32]>,
+    ) {
+        let scale = kp.norm / self.n as f32;
+        let mean_mass = self.mean_mass;
+        self.walk(axes, radius, kp.radius2, shifts, |y, &c| {
+            let cm = premultiplied(c, mean_mass);
+            let color = color.as_deref_mut();
+            splat_point(axes, y, &cm, kp, radius, scale, density, color);
+        });
+    }
+}
+
+/// Adds one point's splat terms (color factors `cm`, see `premultiplied`) to the cells of the
+/// region it reaches: through blocks of cells per row when its span along axis 0 fits one, else
+/// cell by cell.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn splat_point<const D: usize>(
+    axes: &Axes<D>,
+    y: &[f32; D],
+    cm: &[f32; 3],
+    kp: kernel::Prepared,
+    radius: f32,
+    scale: f32,
+    density: &mut [f32],
+    color: Option<&mut [f32]>,
+) {
+    let mut spans = [Span::EMPTY; D];
+    let mut lo = [0usize; D];
+    let mut hi = [0usize; D];
+    let mut wide = false;
+    for k in 0..D {
+        match axes.lanes(k, y[k], radius, kp.radius2) {
+            Lanes::Empty => return,
+            Lanes::Wide(a, b) => {
+                wide = true;
+                (lo[k], hi[k]) = (a, b);
+            }
+            Lanes::Span(s) => {
+                (lo[k], hi[k]) = (s.first(), s.first() + s.len - 1);
+                spans[k] = s;
+            }
+        }
+    }
+    let width = axes.size(0);
+    if !wide && spans[0].len <= 4 && width >= 4 {
+        splat_block::<D, 4>(axes, y, cm, &spans, kp, scale, density, color);
+    } else if !wide && width >= LANES {
+        splat_block::<D, LANES>(axes, y, cm, &spans, kp, scale, density, color);
+    } else {
+        splat_cells(axes, y, cm, &lo, &hi, kp, scale, density, color);
+    }
+}
+
+/// Adds a point's splat terms to the rows of its span, `B` cells of axis 0 at a time starting at its
+/// first cell (shifted left at the region's end: the region is at least `B` cells wide), only to
+/// the lanes within the cutoff.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn splat_block<const D: usize, const B: usize>(
+    axes: &Axes<D>,
+    y: &[f32; D],
+    cm: &[f32; 3],
+    spans: &[Span; D],
+    kp: kernel::Prepared,
+    scale: f32,
+    density: &mut [f32],
+    mut color: Option<&mut [f32]>,
+) {
+    let s = spans[0].first().min(axes.last[0] + 1 - B);
+    let cx = axes.centers::<B>(0, s);
+    let mut s0 = [0.0f32; B];
+    for i in 0..B {
+        let t = y[0] - cx[i];
+        s0[i] = t * t;
+    }
+    let g0 = kp.weights(&s0);
+    // Factors of the other axes, over all their lanes (one vector loop each).
+    let mut g = [[0.0f32; LANES]; D];
+    for k in 1..D {
+        g[k] = kp.weights(&spans[k].sq);
+    }
+    let mut idx = [0usize; D];
+    loop {
+        // Summed in axis order from 0, as `point::point` does; the factor of the row's other axes
+        // multiplied from the last axis down, as `splat::splat_cells` does.
+        let mut r2 = s0;
+        let mut row = s - axes.first[0];
+        let mut p = scale;
+        for k in 1..D {
+            let t = spans[k].sq_at(idx[k]);
+            for v in r2.iter_mut() {
+                *v += t;
+            }
+            row += (spans[k].first() + idx[k] - axes.first[k]) * axes.stride[k];
+        }
+        for k in (1..D).rev() {
+            p *= g[k][(spans[k].lead + idx[k]).min(LANES - 1)];
+        }
+        let mut keep = [false; B];
+        for i in 0..B {
+            keep[i] = r2[i] <= kp.radius2;
+        }
+        if let Some(d) = density.get_mut(row..row + B) {
+            for ((d, &g0), &keep) in d.iter_mut().zip(&g0).zip(&keep) {
+                if keep {
+                    *d += g0 * p;
+                }
+            }
+        }
+        if let Some(px) = color
+            .as_deref_mut()
+            .and_then(|c| c.get_mut(row * 3..(row + B) * 3))
+        {
+            for ((px, &g0), &keep) in px.chunks_exact_mut(3).zip(&g0).zip(&keep) {
+                if keep {
+                    for (v, c) in px.iter_mut().zip(cm) {
+                        *v += (g0 * c) * p;
+                    }
+                }
+            }
+        }
+        let mut k = 1;
+        loop {
+            if k >= D {
+                return;
+            }
+            if idx[k] + 1 < spans[k].len {
+                idx[k] += 1;
+                break;
+            }
+            idx[k] = 0;
+            k += 1;
+        }
+    }
+}

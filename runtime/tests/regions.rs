@@ -1,0 +1,446 @@
+//! Region queries on the paths images take: 2D grids with narrow kernels (σ from 0.15 to 0.8
+//! cell, where points go through fixed 4×4 blocks and, near the widest, some through the general
+//! paths in between), bands and tiles, regions narrower than a block. Point grids must equal
+//! per-cell point queries and region splats the full splat, bit for bit, whatever the buffers held
+//! before (a splat adds); and splats must equal point queries within the tolerance the `splat`
+//! module states, in every dimension.
+#![allow(clippy::needless_range_loop)]
+
+mod common;
+
+use common::{fixture_with, weights, Fixture, Rng, STORAGES};
+use otbake_runtime::{
+    Blend, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region, SplatTarget, MAX_DIM,
+    SPLAT_TERM_TOLERANCE,
+};
+use proptest::prelude::*;
+
+fn open(f: &Fixture) -> (Proxy<'_>, Vec<Map<'_>>) {
+    (
+        Proxy::open(&f.proxy).unwrap(),
+        f.maps.iter().map(|m| Map::open(m).unwrap()).collect(),
+    )
+}
+
+fn prepare<'b>(blend: &Blend<'_, '_>, w: &[f32], store: &'b mut Vec<f32>) -> Prepared<'b> {
+    let sizes = blend.prepared_sizes();
+    store.resize(sizes.total(), f32::NAN);
+    let b: PreparedBuffers<'b> = sizes.split(store).unwrap();
+    blend.prepare(w, b).unwrap()
+}
+
+fn bits(v: &PointValue) -> [u32; 5] {
+    [
+        v.density.to_bits(),
+        v.mass.to_bits(),
+        v.color[0].to_bits(),
+        v.color[1].to_bits(),
+        v.color[2].to_bits(),
+    ]
+}
+
+/// Global cell of region cell `cell` (axis 0 fastest), and its center.
+fn global(dim: usize, region: &Region, cell: usize) -> (usize, Vec<f32>) {
+    let (mut rest, mut g, mut stride) = (cell, 0, 1);
+    let mut c = vec![0.0; dim];
+    for a in 0..dim {
+        let i = region.start[a] as usize + rest % region.size[a] as usize;
+        rest /= region.size[a] as usize;
+        c[a] = (i as f32 + 0.5) / region.res[a] as f32;
+        g += i * stride;
+        stride *= region.res[a] as usize;
+    }
+    (g, c)
+}
+
+/// A 2D grid of up to `max` cells per axis and a random region of it: whole grid, a band, a tile,
+/// or a sliver narrower than a block.
+fn region2(rng: &mut Rng, max: u32) -> Region {
+    let res = [
+        1 + (rng.next() % max as u64) as u32,
+        1 + (rng.next() % max as u64) as u32,
+        1,
+        1,
+    ];
+    let mut r = Region::full(res);
+    match rng.next() % 4 {
+        0 => {}
+        1 => {
+            let first = (rng.next() % res[1] as u64) as u32;
+            let rows = 1 + (rng.next() % (res[1] - first) as u64) as u32;
+            r = Region::rows(res, first, rows);
+        }
+        _ => {
+            for a in 0..2 {
+                r.start[a] = (rng.next() % res[a] as u64) as u32;
+                let room = res[a] - r.start[a];
+                // Regions up to 8 cells wide (narrower than a block, or than the widest span) are
+                // as likely as any other.
+                let most = if rng.next().is_multiple_of(2) {
+                    8
+                } else {
+                    room
+                };
+                r.size[a] = 1 + (rng.next() % room.min(most) as u64) as u32;
+            }
+        }
+    }
+    r
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    #[test]
+    fn narrow_kernel_point_grids_equal_point_queries(seed in 0u64..10_000, n in 1usize..400,
+                                                     leaf in 1u32..9, k in 1usize..4,
+                                                     sigma_cells in 0.15f32..0.8,
+                                                     st in 0..STORAGES.len()) {
+        let f = fixture_with(seed, n, 2, leaf, k, [1; 32], STORAGES[st]);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0x91a7e);
+        let w = weights(&mut rng, k);
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &w, &mut store);
+        for _ in 0..2 {
+            let region = region2(&mut rng, 80);
+            let kernel = Kernel { sigma: sigma_cells / region.res[0].max(region.res[1]) as f32 };
+            let cells = region.cells(2).unwrap();
+            let mut out = vec![PointValue { density: f32::NAN, mass: 3.0, color: [-0.0; 3] }; cells];
+            prep.point_grid(kernel, region, &mut out).unwrap();
+            for (cell, v) in out.iter().enumerate() {
+                let (_, c) = global(2, &region, cell);
+                let want = prep.point(&c, kernel).unwrap();
+                prop_assert_eq!(bits(v), bits(&want), "{:?} cell {} at {:?}", region, cell, c);
+            }
+        }
+    }
+
+    /// Regions 4–7 cells wide at σ near 0.8 cell: points whose span is 5 cells wide take the
+    /// batched general path, the others the blocks, interleaved in point order.
+    #[test]
+    fn mixed_paths_keep_point_order(seed in 0u64..10_000, n in 50usize..400, leaf in 1u32..9,
+                                    sigma_cells in 0.7f32..0.8, width in 4u32..8, res in 8u32..40) {
+        let f = fixture_with(seed, n, 2, leaf, 2, [1; 32], STORAGES[0]);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0x3e1d);
+        let w = weights(&mut rng, 2);
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &w, &mut store);
+        let start = (rng.next() % (res - width + 1) as u64) as u32;
+        let region = Region { res: [res, res, 1, 1], start: [start, 0, 0, 0], size: [width, res, 1, 1] };
+        let kernel = Kernel { sigma: sigma_cells / res as f32 };
+        let mut out = vec![PointValue::default(); region.cells(2).unwrap()];
+        prep.point_grid(kernel, region, &mut out).unwrap();
+        for (cell, v) in out.iter().enumerate() {
+            let (_, c) = global(2, &region, cell);
+            prop_assert_eq!(bits(v), bits(&prep.point(&c, kernel).unwrap()), "cell {}", cell);
+        }
+    }
+
+    #[test]
+    fn narrow_kernel_region_splats_equal_the_full_splat(seed in 0u64..10_000, n in 1usize..400,
+                                                        leaf in 1u32..9, k in 1usize..4,
+                                                        sigma_cells in 0.15f32..0.8,
+                                                        st in 0..STORAGES.len()) {
+        let f = fixture_with(seed, n, 2, leaf, k, [1; 32], STORAGES[st]);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0x5b1a7);
+        let w = weights(&mut rng, k);
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &w, &mut store);
+        let region = region2(&mut rng, 80);
+        let kernel = Kernel { sigma: sigma_cells / region.res[0].max(region.res[1]) as f32 };
+        // Buffers start with arbitrary values, negative zeros among them: a splat adds to them,
+        // and cells no point reaches must keep their bits.
+        let full = (region.res[0] * region.res[1]) as usize;
+        let start = |i: usize| match i % 5 { 0 => -0.0, 1 => 0.0, 2 => 1.5, 3 => -2.25, _ => i as f32 * 1e-3 };
+        let mut density: Vec<f32> = (0..full).map(start).collect();
+        let mut color: Vec<f32> = (0..full * 3).map(|i| start(i + 1)).collect();
+        let cells = region.cells(2).unwrap();
+        let mut rd = vec![0.0f32; cells];
+        let mut rc = vec![0.0f32; cells * 3];
+        for cell in 0..cells {
+            let (g, _) = global(2, &region, cell);
+            rd[cell] = density[g];
+            rc[cell * 3..cell * 3 + 3].copy_from_slice(&color[g * 3..g * 3 + 3]);
+        }
+        blend.splat(&w, kernel, SplatTarget { res: region.res, density: &mut density, color: Some(&mut color) }).unwrap();
+        prep.splat_region(kernel, region, &mut rd, Some(&mut rc)).unwrap();
+        for cell in 0..cells {
+            let (g, _) = global(2, &region, cell);
+            prop_assert_eq!(rd[cell].to_bits(), density[g].to_bits(), "{:?} cell {}", region, cell);
+            for a in 0..3 {
+                prop_assert_eq!(rc[cell * 3 + a].to_bits(), color[g * 3 + a].to_bits(), "{:?} cell {} channel {}", region, cell, a);
+            }
+        }
+    }
+
+    /// The tolerance of `otbake_runtime::splat`'s documentation: a cell reached by `m` points
+    /// differs from the point query at its center by at most `(SPLAT_TERM_TOLERANCE + 2m·2⁻²⁴)`
+    /// times the sum of the absolute values of its terms (computed here in f64, over the points
+    /// the runtime's own f32 cutoff test counts) — and by nothing where no point counts.
+    #[test]
+    fn splats_are_point_queries_within_the_stated_tolerance(seed in 0u64..10_000, n in 1usize..300,
+                                                            dim in 1usize..=3, leaf in 1u32..9,
+                                                            k in 1usize..4, sigma_cells in 0.15f32..2.5,
+                                                            st in 0..STORAGES.len()) {
+        let f = fixture_with(seed, n, dim, leaf, k, [1; 32], STORAGES[st]);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0x70e2);
+        let w = weights(&mut rng, k);
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &w, &mut store);
+        let max_res = [0u64, 200, 48, 12][dim];
+        let mut res = [1u32; MAX_DIM];
+        for r in res.iter_mut().take(dim) {
+            *r = 1 + (rng.next() % max_res) as u32;
+        }
+        let finest = *res[..dim].iter().max().unwrap();
+        let kernel = Kernel { sigma: sigma_cells / finest as f32 };
+        let kp = kernel.prepare(dim).unwrap();
+        let region = Region::full(res);
+        let cells = region.cells(dim).unwrap();
+        let mut density = vec![0.0f32; cells];
+        let mut color = vec![0.0f32; cells * 3];
+        prep.splat_region(kernel, region, &mut density, Some(&mut color)).unwrap();
+        let (pos, col) = (prep.positions(), prep.colors());
+        let scale = kp.norm as f64 / n as f64;
+        let mm = prep.mean_mass() as f64;
+        let sigma = kernel.sigma as f64;
+        let eps = 2f64.powi(-24);
+        for cell in 0..cells {
+            let (_, c) = global(dim, &region, cell);
+            let want = prep.point(&c, kernel).unwrap();
+            // The terms the runtime counts (its own f32 distance and cutoff), in f64.
+            let (mut m, mut sd, mut sc) = (0usize, 0.0f64, [0.0f64; 3]);
+            for i in 0..n {
+                let mut r2 = 0.0f32;
+                for a in 0..dim {
+                    let t = pos[i * dim + a] - c[a];
+                    r2 += t * t;
+                }
+                if r2 <= kp.radius2 {
+                    let g = (-(r2 as f64) / (2.0 * sigma * sigma)).exp() * scale;
+                    m += 1;
+                    sd += g;
+                    for a in 0..3 {
+                        sc[a] += (g * col[i * 3 + a] as f64 * mm).abs();
+                    }
+                }
+            }
+            let rel = SPLAT_TERM_TOLERANCE as f64 + 2.0 * m as f64 * eps;
+            let diff = (density[cell] as f64 - want.density as f64).abs();
+            prop_assert!(diff <= rel * sd, "cell {} ({} points): splat {} vs point {} (diff {:e} > {:e})",
+                         cell, m, density[cell], want.density, diff, rel * sd);
+            for a in 0..3 {
+                let diff = (color[cell * 3 + a] as f64 - want.color[a] as f64).abs();
+                prop_assert!(diff <= rel * sc[a], "cell {} channel {}: splat {} vs point {}",
+                             cell, a, color[cell * 3 + a], want.color[a]);
+            }
+        }
+    }
+}
+
+/// The shape of the benchmark (a 256² image at σ = 0.5 px, whole and in bands, thousands of points
+/// in one region): the same bits as per-pixel queries and as the full splat.
+#[test]
+fn image_sized_regions_match_their_references() {
+    let f = fixture_with(7, 6000, 2, 8, 3, [1; 32], STORAGES[0]);
+    let (proxy, maps) = open(&f);
+    let blend = Blend::new(proxy, &maps).unwrap();
+    let w = [0.3f32, 0.3, 0.4];
+    let mut store = Vec::new();
+    let prep = prepare(&blend, &w, &mut store);
+    let res = [256u32, 256, 1, 1];
+    let kernel = Kernel { sigma: 0.5 / 256.0 };
+    let mut whole = vec![PointValue::default(); 256 * 256];
+    prep.point_grid(kernel, Region::full(res), &mut whole)
+        .unwrap();
+    let mut banded = vec![PointValue::default(); 256 * 256];
+    for (b, band) in banded.chunks_mut(256 * 24).enumerate() {
+        let rows = (band.len() / 256) as u32;
+        prep.point_grid(kernel, Region::rows(res, b as u32 * 24, rows), band)
+            .unwrap();
+    }
+    for (cell, (a, b)) in whole.iter().zip(&banded).enumerate() {
+        let c = [
+            ((cell % 256) as f32 + 0.5) / 256.0,
+            ((cell / 256) as f32 + 0.5) / 256.0,
+        ];
+        let want = prep.point(&c, kernel).unwrap();
+        assert_eq!(bits(a), bits(&want), "cell {cell}");
+        assert_eq!(bits(b), bits(&want), "cell {cell} (bands)");
+    }
+    assert!(whole.iter().filter(|v| v.density > 0.0).count() > 1000);
+    let mut density = vec![0.0f32; 256 * 256];
+    let mut color = vec![0.0f32; 256 * 256 * 3];
+    blend
+        .splat(
+            &w,
+            kernel,
+            SplatTarget {
+                res,
+                density: &mut density,
+                color: Some(&mut color),
+            },
+        )
+        .unwrap();
+    let mut rd = vec![0.0f32; 256 * 256];
+    let mut rc = vec![0.0f32; 256 * 256 * 3];
+    for (b, (d, c)) in rd
+        .chunks_mut(256 * 40)
+        .zip(rc.chunks_mut(256 * 40 * 3))
+        .enumerate()
+    {
+        let rows = (d.len() / 256) as u32;
+        prep.splat_region(kernel, Region::rows(res, b as u32 * 40, rows), d, Some(c))
+            .unwrap();
+    }
+    assert_eq!(
+        rd.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        density.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+    assert_eq!(
+        rc.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        color.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+}
+
+/// A one-map blend (weight 1, so the blended points are `pos` exactly) with colors.
+fn exact_points(pos: &[f32]) -> (rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>) {
+    use otbake_formats::proxy::Proxy as ProxyData;
+    use otbake_formats::tree::{depth, fill_node_boxes, node_count};
+    use otbake_formats::write::{encode_map_content, encode_proxy, MapContent};
+    let n = pos.len() / 2;
+    let d = depth(n as u32, 4);
+    let mut boxes = vec![0.0; node_count(d) as usize * 4];
+    fill_node_boxes(pos, 2, d, &mut boxes);
+    let proxy = encode_proxy(&ProxyData {
+        dim: 2,
+        n: n as u32,
+        leaf_size: 4,
+        depth: d,
+        key: [5; 32],
+        wrap: 0,
+        description: "ties",
+        positions: pos,
+        node_boxes: &boxes,
+    })
+    .unwrap();
+    let colors: Vec<f32> = (0..n * 3).map(|i| 0.25 + (i % 7) as f32 * 0.1).collect();
+    let map = encode_map_content(
+        &MapContent {
+            dim: 2,
+            depth: d,
+            proxy_key: [5; 32],
+            key: [6; 32],
+            composite: 0,
+            mean_mass: 0.7,
+            wrap: otbake_formats::Wrap::Clamp,
+            positions: pos,
+            colors: &colors,
+            solver_report: "",
+            transport_cost: 0.0,
+        },
+        otbake_runtime::Storage::FULL,
+    )
+    .unwrap();
+    (proxy, map)
+}
+
+/// The block paths place a point's cells by arithmetic and judge them by exact tests; points
+/// within a few ulps of the cutoff of a cell along one axis (coordinate `(n + ½ ± rc) / res`, `rc`
+/// the radius in cells, so that rounding decides whether the cell counts) and on a cell's center
+/// along the other (so the full test is decided by the tie) must still get exactly the per-cell
+/// terms: point grids equal point queries and region splats the full splat, bit for bit. (A block
+/// placement that trusted the arithmetic at these ties failed this test at σ = 0.8 cell, 50².)
+#[test]
+fn points_on_cutoff_ties_keep_their_bits() {
+    for (res, sigma_cells) in [
+        (64u32, 0.5f32),
+        (37, 0.5),
+        (50, 0.8),
+        (29, 0.3),
+        (41, 0.45),
+        (23, 0.7),
+    ] {
+        let rc = 3.0 * sigma_cells;
+        let mut pos = Vec::new();
+        let mut rng = Rng(u64::from(res));
+        for _ in 0..6000 {
+            // One coordinate on a cell's center (distance 0 along that axis), so that the cutoff
+            // is decided along the other, which sits at a tie.
+            let on_tie = (rng.next() % 2) as usize;
+            for axis in 0..2 {
+                let n = 2 + (rng.next() % (res as u64 - 4)) as i32;
+                if axis != on_tie {
+                    pos.push((n as f32 + 0.5) / res as f32);
+                    continue;
+                }
+                let side = if rng.next().is_multiple_of(2) {
+                    rc
+                } else {
+                    -rc
+                };
+                let mut v = (n as f32 + 0.5 + side) / res as f32;
+                // A few ulps either way of the tie.
+                for _ in 0..(rng.next() % 9) {
+                    v = if rng.next().is_multiple_of(2) {
+                        f32::from_bits(v.to_bits() + 1)
+                    } else {
+                        f32::from_bits(v.to_bits() - 1)
+                    };
+                }
+                pos.push(v.clamp(0.0, 1.0));
+            }
+        }
+        let (p, m) = exact_points(&pos);
+        let maps = [Map::open(&m).unwrap()];
+        let blend = Blend::new(Proxy::open(&p).unwrap(), &maps).unwrap();
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &[1.0], &mut store);
+        let kernel = Kernel {
+            sigma: sigma_cells / res as f32,
+        };
+        let full = Region::full([res, res, 1, 1]);
+        let cells = (res * res) as usize;
+        let mut out = vec![PointValue::default(); cells];
+        prep.point_grid(kernel, full, &mut out).unwrap();
+        for (cell, v) in out.iter().enumerate() {
+            let (_, c) = global(2, &full, cell);
+            let want = prep.point(&c, kernel).unwrap();
+            assert_eq!(
+                bits(v),
+                bits(&want),
+                "res {res} σ {sigma_cells} cell {cell}"
+            );
+        }
+        let mut d0 = vec![0.0f32; cells];
+        let mut c0 = vec![0.0f32; cells * 3];
+        let target = SplatTarget {
+            res: full.res,
+            density: &mut d0,
+            color: Some(&mut c0),
+        };
+        blend.splat(&[1.0], kernel, target).unwrap();
+        let mut d1 = vec![0.0f32; cells];
+        let mut c1 = vec![0.0f32; cells * 3];
+        prep.splat_region(kernel, full, &mut d1, Some(&mut c1))
+            .unwrap();
+        for cell in 0..cells {
+            assert_eq!(
+                d1[cell].to_bits(),
+                d0[cell].to_bits(),
+                "res {res} cell {cell}"
+            );
+            for a in 0..3 {
+                assert_eq!(c1[cell * 3 + a].to_bits(), c0[cell * 3 + a].to_bits());
+            }
+        }
+    }
+}
