@@ -7,11 +7,14 @@
 //! * column test: C_ij − f_i ≤ min_i' (C_i'j − f_i') + θε,
 //!
 //! where f_i is set to the row minimum (the hard c-transform of g), so every kept row entry is in
-//! [e^−θ, 1] and every row holds its best column. Dropped entries are below e^−θ relative to the best
-//! entry of both their row and their column. The tests are *exact* for the given potentials, not
-//! heuristics: each is a branch-and-bound search down the other cloud's [`Hierarchy`], pruning a cell
-//! when |x − box|² − max(potential in the cell) exceeds the current threshold, which is a lower bound
-//! of C − potential for every descendant because the box holds all descendant positions.
+//! [e^−θ, 1] and every row holds its best column. With that f the row test implies the column test
+//! (C_ij − f_i ≥ g_j for all pairs, so the column minimum is at least g_j), so a build searches each
+//! row only for its minimum and each column with the margin θε. Dropped entries are below e^−θ
+//! relative to the best entry of both their row and their column. The tests are *exact* for the
+//! given potentials, not heuristics: each is a branch-and-bound search down the other cloud's
+//! [`Hierarchy`], pruning a cell when |x − box|² − max(potential in the cell) exceeds the current
+//! threshold, which is a lower bound of C − potential for every descendant because the box holds all
+//! descendant positions.
 //!
 //! On the torus (`Wrap::Periodic`) C is the squared distance to the nearest image, and a cell's bound
 //! is the smallest of the bounds for the query's images `x − m` that can be nearest (per axis `x_k`
