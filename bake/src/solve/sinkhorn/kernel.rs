@@ -29,6 +29,7 @@ use super::hierarchy::{Hierarchy, Level};
 use crate::solve::cost;
 use otbake_formats::Wrap;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
 const CHUNK: usize = 1024;
@@ -305,6 +306,9 @@ fn search<const D: usize>(
 
 /// For every cell of `from` at `level`: the cells of `to` passing the truncation test against
 /// potential `pot` (sorted by index) and the minimum. Returned as CSR (ptr, idx) plus minima.
+/// Returns `None` as soon as more than `max_pairs` pairs are found (so that memory stays bounded
+/// when the blur is far above the local spacing); whether that happens does not depend on the
+/// thread count, since the count only grows.
 fn search_all<const D: usize>(
     from: &Level<D>,
     to: &Hierarchy<D>,
@@ -312,7 +316,9 @@ fn search_all<const D: usize>(
     pot: &[f64],
     margin: f64,
     wrap: Wrap,
-) -> (Vec<usize>, Vec<u32>, Vec<f64>) {
+    max_pairs: usize,
+) -> Option<(Vec<usize>, Vec<u32>, Vec<f64>)> {
+    let count = AtomicUsize::new(0);
     let bnd = bounds(to, level, pot);
     let m = from.len();
     let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = (0..m.div_ceil(CHUNK))
@@ -326,6 +332,9 @@ fn search_all<const D: usize>(
             let mut mins = Vec::with_capacity(b - a);
             let mut hint = None;
             for i in a..b {
+                if count.load(Ordering::Relaxed) > max_pairs {
+                    break;
+                }
                 found.clear();
                 let best = search(
                     to,
@@ -344,6 +353,7 @@ fn search_all<const D: usize>(
                     .min_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)))
                     .map(|e| e.0);
                 found.sort_unstable_by_key(|e| e.0);
+                count.fetch_add(found.len(), Ordering::Relaxed);
                 lens.push(found.len() as u32);
                 idx.extend(found.iter().map(|e| e.0));
                 mins.push(best);
@@ -351,6 +361,9 @@ fn search_all<const D: usize>(
             (lens, idx, mins)
         })
         .collect();
+    if count.into_inner() > max_pairs {
+        return None;
+    }
     let total: usize = chunks.iter().map(|c| c.1.len()).sum();
     let mut ptr = Vec::with_capacity(m + 1);
     let mut idx = Vec::with_capacity(total);
@@ -363,7 +376,7 @@ fn search_all<const D: usize>(
         idx.extend(ix);
         mins.extend(mn);
     }
-    (ptr, idx, mins)
+    Some((ptr, idx, mins))
 }
 
 /// Transposes a CSR pattern (rows ascending inside each column): returns (ptr, idx, position of
@@ -401,7 +414,8 @@ pub(super) fn build<const D: usize>(
     eps: f64,
     theta: f64,
     wrap: Wrap,
-) -> Kernel {
+    max_pairs: usize,
+) -> Option<Kernel> {
     let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
     let margin = theta * eps;
     // f = row minima (the hard c-transform of g), with each row's best column. The row test needs
@@ -409,9 +423,9 @@ pub(super) fn build<const D: usize>(
     // column minimum min_i' (C_i'j − f_i') is at least g_j, and a pair within θε of its row's best
     // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too. A search with margin 0 finds
     // only the minimizers, and halves the cost of a build.
-    let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap);
+    let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap, max_pairs)?;
     // Column test against f.
-    let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap);
+    let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap, max_pairs)?;
     // Column-test pairs as rows, then the union with the row-test pairs, row by row.
     let (eptr, eidx, _) = transpose(&cptr, &cidx, xs.len());
     let m = xs.len();
@@ -476,7 +490,7 @@ pub(super) fn build<const D: usize>(
     }
     let (col_ptr, row, src_pos) = transpose(&row_ptr, &col, ys.len());
     let kt = src_pos.iter().map(|&e| k[e]).collect();
-    Kernel {
+    Some(Kernel {
         row_ptr,
         col,
         k,
@@ -484,7 +498,7 @@ pub(super) fn build<const D: usize>(
         row,
         kt,
         f,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -522,7 +536,7 @@ mod tests {
                 .collect();
             let eps = 1e-3;
             let theta = 8.0;
-            let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Clamp);
+            let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
             let f: Vec<f64> = (0..xs.len())
                 .map(|i| {
                     (0..ys.len())

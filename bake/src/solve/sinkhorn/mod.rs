@@ -186,6 +186,11 @@ impl SinkhornSettings {
 /// the point spacing or many points coincide, and memory would no longer be linear in n.
 const MAX_PAIRS_PER_POINT: usize = 4096;
 
+/// Largest kernel in all, whatever n: 2^27 pairs take about 2 GB in the kernel's four arrays and
+/// about 9 GB of peak memory in the solve (the 1M-point 3D cow's 67M pairs peaked at 4.5 GB).
+/// A BRDF whose density is concentrated in a specular peak reached 19 GB before this limit.
+const MAX_PAIRS: usize = 1 << 27;
+
 /// Default final blur in point spacings, by dimension (index 1, 2, 3; 3 also for 4D). A kernel row
 /// keeps the points within about √θ·blur, so the pairs per point grow like blur_spacing^d: 1.5 in
 /// 2D keeps about 60 pairs per point at θ = 8, and 1.0 in 3D about 100 (1.5 in 3D kept 315 and the
@@ -358,11 +363,10 @@ fn run<const D: usize>(
             }
         };
         let tk = std::time::Instant::now();
-        let kernel = kernel::build(&hs, &ht, level, &g, eps, settings.truncate, wrap);
+        let kernel = build_kernel(&hs, &ht, level, &g, eps, settings, wrap, spacing)?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("  kernel build {:.2}s", tk.elapsed().as_secs_f64());
         }
-        check_pairs(&kernel, hs.levels[level].len(), blur, spacing)?;
         max_pairs = max_pairs.max(kernel.pairs());
         let (a, bm) = (&hs.levels[level].mass, &ht.levels[level].mass);
         let mut st = State {
@@ -380,7 +384,16 @@ fn run<const D: usize>(
         } else {
             settings.tolerance * STAGE_TOLERANCE
         };
-        let log = iterate(&hs, &ht, &mut st, settings, tol, &mut rebuilds, wrap)?;
+        let log = iterate(
+            &hs,
+            &ht,
+            &mut st,
+            settings,
+            tol,
+            &mut rebuilds,
+            wrap,
+            spacing,
+        )?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("stage {stage} blur {blur:.3e} level {level} cells {}x{} pairs {} its {} err {:.2e} {:.2}s", hs.levels[level].len(), ht.levels[level].len(), st.kernel.pairs(), log.iterations, log.error, t0.elapsed().as_secs_f64());
         }
@@ -574,22 +587,37 @@ fn extrapolate<const D: usize>(
         .collect()
 }
 
-/// Refuses kernels whose size is no longer linear in n.
-fn check_pairs(kernel: &Kernel, rows: usize, blur: f64, spacing: f64) -> Result<(), SolveError> {
-    let pairs = kernel.pairs();
-    if pairs > MAX_PAIRS_PER_POINT * rows.max(1) {
-        return Err(SolveError::InvalidSettings {
+/// Builds a stage's kernel, refusing one whose size is no longer linear in n (more than
+/// [`MAX_PAIRS_PER_POINT`] per point, or [`MAX_PAIRS`] in all): the search stops as soon as it has
+/// found that many pairs, so the refusal costs bounded memory.
+#[allow(clippy::too_many_arguments)]
+fn build_kernel<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    level: usize,
+    g: &[f64],
+    eps: f64,
+    settings: &SinkhornSettings,
+    wrap: Wrap,
+    spacing: f64,
+) -> Result<Kernel, SolveError> {
+    let rows = hs.levels[level].len().max(1);
+    let limit = MAX_PAIRS_PER_POINT.saturating_mul(rows).min(MAX_PAIRS);
+    kernel::build(hs, ht, level, g, eps, settings.truncate, wrap, limit).ok_or_else(|| {
+        let blur = eps.sqrt();
+        SolveError::InvalidSettings {
             solver: NAME,
             field: "blur",
             reason: format!(
-                "the truncated kernel at blur {blur:e} ({:.2} x the point spacing) keeps {pairs} \
-                 pairs for {rows} points (limit {MAX_PAIRS_PER_POINT} per point): many points \
-                 coincide or the blur is far above the spacing; lower blur/truncate",
+                "the truncated kernel at blur {blur:e} ({:.2} x the mean point spacing) would keep \
+                 more than {limit} pairs for {rows} points (limits: {MAX_PAIRS_PER_POINT} per \
+                 point, {MAX_PAIRS} in all, to keep memory linear in n): many points coincide, or \
+                 the density is so uneven that its dense parts hold thousands of points within one \
+                 blur; lower blur (or blur_spacing) or truncate, or use kind = \"sliced\"",
                 blur / spacing
             ),
-        });
-    }
-    Ok(())
+        }
+    })
 }
 
 /// Rows per parallel work item.
@@ -602,6 +630,7 @@ const STALE_ITERATIONS: u32 = 50;
 
 /// Sinkhorn iterations of one stage until the row marginal error (after a column update) is below
 /// the tolerance or the iteration cap is hit.
+#[allow(clippy::too_many_arguments)]
 fn iterate<const D: usize>(
     hs: &Hierarchy<D>,
     ht: &Hierarchy<D>,
@@ -610,6 +639,7 @@ fn iterate<const D: usize>(
     tol: f64,
     rebuilds: &mut u32,
     wrap: Wrap,
+    spacing: f64,
 ) -> Result<StageLog, SolveError> {
     let (a, b) = (
         hs.levels[st.level].mass.clone(),
@@ -732,7 +762,7 @@ fn iterate<const D: usize>(
             // Absorb and rebuild the kernel around the new potentials.
             let g = absorbed(&st.g, &st.v, &b, st.eps);
             let tk = std::time::Instant::now();
-            st.kernel = kernel::build(hs, ht, st.level, &g, st.eps, settings.truncate, wrap);
+            st.kernel = build_kernel(hs, ht, st.level, &g, st.eps, settings, wrap, spacing)?;
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!(
                     "  rebuild at it {it} (drift e^{:.2}) {:.2}s",

@@ -316,3 +316,33 @@ fn spacing_follows_the_denser_cloud() {
     let half = spacing(&wide, &packed) * (n as f64).sqrt();
     assert!((0.45..=0.6).contains(&half), "packed: {half} × side/√n");
 }
+
+/// A blur far above the point spacing would keep every pair (4500 per point, above the limit of
+/// 4096): the solver refuses with an error naming `blur`, and the search stops at the limit instead
+/// of building the whole kernel first (a concentrated BRDF once took 19 GB that way; this test
+/// checks the refusal, not the memory).
+#[test]
+fn kernel_beyond_the_pair_limit_is_refused() {
+    let mut rng = SplitMix64::new(11);
+    let n = 4500;
+    let (a, b) = (
+        uniform(&mut rng, n, [0.0, 0.0], [1.0, 1.0]),
+        uniform(&mut rng, n, [0.0, 0.0], [1.0, 1.0]),
+    );
+    let p = Problem {
+        dim: 2,
+        source: &a,
+        target: &b,
+    };
+    let s = SinkhornSettings {
+        blur: Some(4.0),
+        ..Default::default()
+    };
+    match solve(&p, &SolverSettings::Sinkhorn(s)) {
+        Err(SolveError::InvalidSettings { field, reason, .. }) => {
+            assert_eq!(field, "blur");
+            assert!(reason.contains("4096 per point"), "{reason}");
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}

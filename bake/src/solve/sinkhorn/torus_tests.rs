@@ -41,7 +41,7 @@ fn torus_truncation_equals_dense_scan() {
             })
             .collect();
         let (eps, theta) = (1e-3, 8.0);
-        let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Periodic);
+        let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Periodic, usize::MAX).unwrap();
         let c = |i: usize, j: usize| sq(Wrap::Periodic, &xs.pos[i], &ys.pos[j]);
         let f: Vec<f64> = (0..xs.len())
             .map(|i| {
