@@ -127,6 +127,13 @@ impl Window {
 /// How many cells before the point's own cell a [`Window`] starts.
 const BACK: usize = 3;
 
+/// Finest grid (cells per axis) the windowed paths take. A window starts from the point's cell as
+/// `coordinate × res` rounded in f32, which keeps fewer bits below the cell the finer the grid: at
+/// 2^23 cells per axis a point grid lost its bit-exactness with point queries (test
+/// `very_fine_grids_match_point_queries`); at 2^20 and below four bits remain, far inside the
+/// window's slack. Finer grids take the general path.
+const MAX_WINDOWED_RES: f32 = (1u32 << 20) as f32;
+
 /// Widest truncation radius, in cells, for which a [`Window`] holds every passing cell: passing
 /// cells `i` satisfy `|u − (i + ½)| <= radius` (`u` the coordinate in cells) up to rounding far below
 /// a cell, so with `m = ⌊u⌋` they lie in `m − 3 ..= m + 2` while the radius stays below 2.5, and a
@@ -166,9 +173,12 @@ impl<const D: usize> Axes<D> {
     }
 
     /// Whether [`Self::window`] finds every passing cell of axis `k` for a kernel of truncation
-    /// radius `radius`: the axis is tabulated and the radius spans at most [`WINDOW_RADIUS`] cells.
+    /// radius `radius`: the axis is tabulated, the radius spans at most [`WINDOW_RADIUS`] cells and
+    /// the grid has at most [`MAX_WINDOWED_RES`] cells per axis.
     pub fn windowed(&self, k: usize, radius: f32) -> bool {
-        self.tabulated[k] && radius * self.res[k] <= WINDOW_RADIUS
+        self.tabulated[k]
+            && radius * self.res[k] <= WINDOW_RADIUS
+            && self.res[k] <= MAX_WINDOWED_RES
     }
 
     /// The first of the [`LANES`] cells of the window of a point at coordinate `y` on axis `k`

@@ -444,3 +444,51 @@ fn points_on_cutoff_ties_keep_their_bits() {
         }
     }
 }
+
+/// Grids far finer than f32 resolves near the points (2^22–2^24 cells per axis, where a coordinate
+/// times the resolution keeps at most two bits below the cell): point grids still equal per-cell
+/// point queries, bit for bit.
+#[test]
+fn very_fine_grids_match_point_queries() {
+    for (shift, sigma_cells) in [(22u32, 0.5f32), (23, 0.7), (24, 0.3), (21, 0.8)] {
+        let res = 1u32 << shift;
+        let size = 24u32;
+        let start = (res / 10) * 7;
+        let mut rng = Rng(u64::from(shift));
+        let mut pos = Vec::new();
+        for _ in 0..3000 {
+            for _ in 0..2 {
+                let cell =
+                    start as f64 - 4.0 + (rng.next() % 1_000_000) as f64 / 1e6 * (size + 8) as f64;
+                pos.push((cell / res as f64) as f32);
+            }
+        }
+        let (p, m) = exact_points(&pos);
+        let maps = [Map::open(&m).unwrap()];
+        let blend = Blend::new(Proxy::open(&p).unwrap(), &maps).unwrap();
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &[1.0], &mut store);
+        let kernel = Kernel {
+            sigma: sigma_cells / res as f32,
+        };
+        let region = Region {
+            res: [res, res, 1, 1],
+            start: [start, start, 0, 0],
+            size: [size, size, 1, 1],
+        };
+        let mut out = vec![PointValue::default(); (size * size) as usize];
+        prep.point_grid(kernel, region, &mut out).unwrap();
+        let mut nonzero = 0;
+        for (cell, v) in out.iter().enumerate() {
+            let (_, c) = global(2, &region, cell);
+            let want = prep.point(&c, kernel).unwrap();
+            nonzero += usize::from(want.density > 0.0);
+            assert_eq!(
+                bits(v),
+                bits(&want),
+                "res 2^{shift} σ {sigma_cells} cell {cell}"
+            );
+        }
+        assert!(nonzero > 0, "res 2^{shift}: the region holds points");
+    }
+}
