@@ -656,7 +656,7 @@ fn iterate<const D: usize>(
     // few hundred boundary points whose potentials move by several ε; rebuilding for each of them
     // cost 14 full kernel searches in the final stage at 50K points, lazily it takes 2–3. (The
     // limit was θε: 2θε took the 250K 3D cow's final stage from 7 to 5 kernel builds with the same
-    // iterations, and the 250K duck from 17.4 to 13.1 s of CPU.)
+    // iterations, and the 250K duck from 17.4 to 15.4 s of CPU.)
     let drift_soft = (settings.truncate / 4.0).exp();
     let drift_hard = (2.0 * settings.truncate).exp();
     let drift_stale = settings.truncate.exp();
