@@ -6,15 +6,16 @@
 //! tolerance, truncate, auction_eps, scaling; `seed` is the shape's sample seed, 1 unless given).
 //! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
 //! luminance, seed 1 unless `seed=` says); a mesh name (cow, fish, torus, suzanne) instead of SHAPE
-//! makes it 3D: the mesh voxelized at 64³ and a 3D Gaussian proxy. With `exact`, also runs the exact solver and prints the cost ratio and the
-//! L2-UVP of the Sinkhorn map against the exact matching. `OTBAKE_TRACE=1` prints every stage.
+//! makes it 3D: the mesh voxelized at 64³ and a 3D Gaussian proxy. With `exact`, also runs the
+//! exact solver and prints the cost ratio and the L2-UVP of the Sinkhorn map against the exact
+//! matching. `OTBAKE_TRACE=1` prints every stage.
 
 use otbake::input::{load, DensityChannel};
 use otbake::proxy::{proxy_points, ProxyShape};
 use otbake::sample::importance_sample;
 use otbake::solve::metrics::l2_uvp;
 use otbake::solve::{solve, ExactSettings, Problem, SinkhornSettings, SolverSettings};
-use otbake::volume::voxelize::MeshOptions;
+use otbake::volume::voxelize::{self, MeshOptions};
 use std::time::Instant;
 
 fn main() {
@@ -51,7 +52,7 @@ fn main() {
                 ..MeshOptions::default()
             };
             let path = format!("../shared/data/meshes/{m}.obj");
-            otbake::volume::voxelize::load(std::path::Path::new(&path), &options).expect("mesh")
+            voxelize::load(std::path::Path::new(&path), &options).expect("mesh")
         }
         None => {
             let path = format!("../shared/data/shapes/{shape}.png");
