@@ -72,6 +72,20 @@ pub(crate) struct Span {
     pub sq: [f32; LANES],
 }
 
+/// Steps `idx` to the next row of the cells `spans` cover, as an odometer over axes 1.. (axis 0 is
+/// the caller's inner loop, `idx[k]` counts cells from `spans[k]`'s start); false after the last.
+#[inline(always)]
+pub(crate) fn next_row<const D: usize>(idx: &mut [usize; D], spans: &[Span; D]) -> bool {
+    for k in 1..D {
+        if idx[k] + 1 < spans[k].len {
+            idx[k] += 1;
+            return true;
+        }
+        idx[k] = 0;
+    }
+    false
+}
+
 impl Span {
     /// A placeholder (no cell).
     pub const EMPTY: Span = Span {

@@ -20,7 +20,7 @@
 //! likes, into disjoint slices of one buffer, with results independent of the split.
 
 use crate::error::Error;
-use crate::footprint::{Axes, Lanes, Span};
+use crate::footprint::{next_row, Axes, Lanes, Span};
 use crate::kernel::{self, Kernel};
 use crate::periodic::Shifts;
 use crate::point::PointValue;
@@ -335,17 +335,8 @@ fn grid_block<const D: usize, const B: usize>(
                 }
             }
         }
-        let mut k = 1;
-        loop {
-            if k >= D {
-                return;
-            }
-            if idx[k] + 1 < spans[k].len {
-                idx[k] += 1;
-                break;
-            }
-            idx[k] = 0;
-            k += 1;
+        if !next_row(&mut idx, spans) {
+            return;
         }
     }
 }
@@ -468,17 +459,8 @@ fn span_cells<const D: usize>(
             }
             batch.put(row + i, r2, c, r2 <= kp.radius2);
         }
-        let mut k = 1;
-        loop {
-            if k >= D {
-                return;
-            }
-            if idx[k] + 1 < spans[k].len {
-                idx[k] += 1;
-                break;
-            }
-            idx[k] = 0;
-            k += 1;
+        if !next_row(&mut idx, spans) {
+            return;
         }
     }
 }

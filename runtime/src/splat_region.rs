@@ -16,7 +16,7 @@
 //! kernel wraps around the grid's borders identically.
 
 use crate::error::Error;
-use crate::footprint::{Axes, Lanes, Span, LANES};
+use crate::footprint::{next_row, Axes, Lanes, Span, LANES};
 use crate::grid::Region;
 use crate::kernel::{self, Kernel};
 use crate::periodic::Shifts;
@@ -203,17 +203,8 @@ fn splat_block<const D: usize, const B: usize>(
                 }
             }
         }
-        let mut k = 1;
-        loop {
-            if k >= D {
-                return;
-            }
-            if idx[k] + 1 < spans[k].len {
-                idx[k] += 1;
-                break;
-            }
-            idx[k] = 0;
-            k += 1;
+        if !next_row(&mut idx, spans) {
+            return;
         }
     }
 }
