@@ -213,7 +213,9 @@ fn cell_bound<const D: usize>(
 
 #[allow(clippy::too_many_arguments)]
 /// All cells j of `h` at `level` with C(x, y_j) − pot_j ≤ min + `margin`, appended to `out` as
-/// (j, C − pot_j) in search order; returns the minimum.
+/// (j, C − pot_j) in search order; returns the minimum. With `fixed = Some(t)` the threshold is `t`
+/// itself, whatever the minimum (the local rebuilds' absolute tests), and the return value is the
+/// smallest value found (∞ if none).
 fn search<const D: usize>(
     h: &Hierarchy<D>,
     level: usize,
@@ -225,14 +227,27 @@ fn search<const D: usize>(
     stack: &mut Vec<(u32, u32, f64)>,
     out: &mut Vec<(u32, f64)>,
     hint: Option<u32>,
+    fixed: Option<f64>,
 ) -> f64 {
     let start = out.len();
     let images = cost::Images::of(x, wrap);
     // An upper bound of the minimum from a likely candidate (the previous row's best: rows are in
     // Morton order, so neighbours share candidates) lets the search prune from the root.
-    let mut best = hint.map_or(f64::INFINITY, |j| {
-        cost::sq(wrap, x, &h.levels[level].pos[j as usize]) - pot[j as usize]
-    });
+    let mut best = match fixed {
+        Some(t) => t - margin,
+        None => hint.map_or(f64::INFINITY, |j| {
+            cost::sq(wrap, x, &h.levels[level].pos[j as usize]) - pot[j as usize]
+        }),
+    };
+    // In fixed mode `best` stays the threshold; `lowest` is the smallest value found.
+    let mut lowest = f64::INFINITY;
+    let mut keep = |out: &mut Vec<(u32, f64)>, best: &mut f64, j: u32, r: f64| {
+        out.push((j, r));
+        lowest = lowest.min(r);
+        if fixed.is_none() {
+            *best = best.min(r);
+        }
+    };
     stack.clear();
     stack.push((0, 0, f64::NEG_INFINITY));
     let mut kids: [(f64, u32); 16] = [(0.0, 0); 16];
@@ -244,8 +259,7 @@ fn search<const D: usize>(
         if l == level {
             let r = cost::sq(wrap, x, &h.levels[l].pos[c as usize]) - pot[c as usize];
             if r <= best + margin {
-                out.push((c, r));
-                best = best.min(r);
+                keep(out, &mut best, c, r);
             }
             continue;
         }
@@ -257,8 +271,7 @@ fn search<const D: usize>(
             for j in a..b {
                 let r = cost::sq(wrap, x, &next.pos[j as usize]) - pot[j as usize];
                 if r <= best + margin {
-                    out.push((j, r));
-                    best = best.min(r);
+                    keep(out, &mut best, j, r);
                 }
             }
             continue;
@@ -301,7 +314,11 @@ fn search<const D: usize>(
         }
     }
     out.truncate(w);
-    best
+    if fixed.is_some() {
+        lowest
+    } else {
+        best
+    }
 }
 
 /// For every cell of `from` at `level`: the cells of `to` passing the truncation test against
@@ -347,6 +364,7 @@ fn search_all<const D: usize>(
                     &mut stack,
                     &mut found,
                     hint,
+                    None,
                 );
                 hint = found
                     .iter()
@@ -377,6 +395,269 @@ fn search_all<const D: usize>(
         mins.extend(mn);
     }
     Some((ptr, idx, mins))
+}
+
+/// For the elements `which` of `from` only: the cells of `to` with C − pot ≤ the element's own
+/// threshold (`limit(element)`), sorted by index, with the smallest value found. Chunks of fixed
+/// size, so the result does not depend on the thread count.
+#[allow(clippy::too_many_arguments)]
+fn search_some<const D: usize>(
+    from: &Level<D>,
+    to: &Hierarchy<D>,
+    level: usize,
+    bnd: &Bounds<D>,
+    pot: &[f64],
+    which: &[u32],
+    limit: impl Fn(usize) -> f64 + Sync,
+    wrap: Wrap,
+) -> Vec<(Vec<u32>, f64)> {
+    which
+        .par_chunks(CHUNK)
+        .flat_map_iter(|chunk| {
+            let mut stack = Vec::new();
+            let mut found = Vec::new();
+            chunk
+                .iter()
+                .map(|&i| {
+                    found.clear();
+                    let i = i as usize;
+                    let lowest = search(
+                        to,
+                        level,
+                        bnd,
+                        pot,
+                        &from.pos[i],
+                        0.0,
+                        wrap,
+                        &mut stack,
+                        &mut found,
+                        None,
+                        Some(limit(i)),
+                    );
+                    let mut idx: Vec<u32> = found.iter().map(|e| e.0).collect();
+                    idx.sort_unstable();
+                    (idx, lowest)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// What a local rebuild did.
+pub(super) enum Local {
+    /// The new kernel, with the numbers of rows and columns searched again.
+    Built(Kernel, usize, usize),
+    /// More than the allowed number of rows or columns moved: build the whole kernel instead.
+    TooMany,
+}
+
+/// A kernel for the new target potential `g`, built from `old` by searching again only the rows and
+/// columns whose potentials moved by more than τε since the last whole build (`f0`, `g0`: the
+/// potentials of that build; `old` holds its pairs and every pair added since).
+///
+/// Why it is enough. Every pair the whole build dropped had C − f0 − g0 > θε. A pair of a row and
+/// a column that both stayed within τε of (`f0`, `g0`) therefore still has C − f − g > (θ − 2τ)ε,
+/// and the old pairs are kept. A moved column is searched with the absolute test C − f − g ≤ θε
+/// (against an upper bound of the new row minima, which only widens it), a moved row likewise; so
+/// every pair touching a moved row or column with reduced cost ≤ θε is kept. The new f is exact:
+/// a row's minimum is over its old pairs, the moved columns' new pairs, and — for a moved row — its
+/// own search; a column outside those can beat it only by moving more than τε, or for rows whose
+/// minimum rose by more than (θ − τ)ε, which are moved rows. So dropped pairs are more than
+/// (θ − 2τ)ε above zero reduced cost, K ≤ 1 still holds, and the set only grows until the next
+/// whole build. Returns `None` past `max_pairs` (like [`build`]).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn rebuild_local<const D: usize>(
+    src: &Hierarchy<D>,
+    tgt: &Hierarchy<D>,
+    level: usize,
+    old: &Kernel,
+    g: &[f64],
+    f0: &[f64],
+    g0: &[f64],
+    eps: f64,
+    theta: f64,
+    tau: f64,
+    wrap: Wrap,
+    max_pairs: usize,
+    max_moved: usize,
+) -> Option<Local> {
+    let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
+    let (m, nt) = (xs.len(), ys.len());
+    let (margin, moved) = (theta * eps, tau * eps);
+    let cols: Vec<u32> = (0..nt as u32)
+        .filter(|&j| (g[j as usize] - g0[j as usize]).abs() > moved)
+        .collect();
+    if cols.len() > max_moved {
+        return Some(Local::TooMany);
+    }
+    // Upper bounds of the new row minima over the old pairs.
+    let mut f: Vec<f64> = (0..m)
+        .into_par_iter()
+        .map(|i| {
+            old.col[old.row_ptr[i]..old.row_ptr[i + 1]]
+                .iter()
+                .map(|&j| cost::sq(wrap, &xs.pos[i], &ys.pos[j as usize]) - g[j as usize])
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    // Moved columns: every row with C − f − g ≤ θε.
+    let col_hits = if cols.is_empty() {
+        Vec::new()
+    } else {
+        let bnd = bounds(src, level, &f);
+        search_some(ys, src, level, &bnd, &f, &cols, |j| g[j] + margin, wrap)
+    };
+    let mut extra: Vec<(u32, u32)> = Vec::new();
+    for (&j, (rows, _)) in cols.iter().zip(&col_hits) {
+        for &i in rows {
+            let iu = i as usize;
+            let c = cost::sq(wrap, &xs.pos[iu], &ys.pos[j as usize]) - g[j as usize];
+            f[iu] = f[iu].min(c);
+            extra.push((i, j));
+        }
+    }
+    let rows: Vec<u32> = (0..m as u32)
+        .filter(|&i| (f[i as usize] - f0[i as usize]).abs() > moved)
+        .collect();
+    if rows.len() > max_moved {
+        return Some(Local::TooMany);
+    }
+    // Moved rows: every column with C − g ≤ f + θε, which also gives their exact minimum.
+    if !rows.is_empty() {
+        let bnd = bounds(tgt, level, g);
+        let row_hits = search_some(xs, tgt, level, &bnd, g, &rows, |i| f[i] + margin, wrap);
+        for (&i, (js, lowest)) in rows.iter().zip(row_hits) {
+            f[i as usize] = f[i as usize].min(lowest);
+            extra.extend(js.iter().map(|&j| (i, j)));
+        }
+    }
+    extra.par_sort_unstable();
+    extra.dedup();
+    if old.pairs() + extra.len() > max_pairs {
+        return None;
+    }
+    // Rows and columns are each the old list merged with the new pairs (both sorted), valued for
+    // the new (f, g): two parallel passes, no transpose. An entry's value is the same expression of
+    // (i, j) in both passes, so the row and column forms hold the same bits.
+    let value = |i: usize, j: usize| -> f32 {
+        let c = cost::sq(wrap, &xs.pos[i], &ys.pos[j]);
+        ((f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32
+    };
+    let (row_ptr, col, k) = merge_lists(&old.row_ptr, &old.col, &extra, |i, j| value(i, j));
+    let mut by_col: Vec<(u32, u32)> = extra.iter().map(|&(i, j)| (j, i)).collect();
+    by_col.par_sort_unstable();
+    let (col_ptr, row, kt) = merge_lists(&old.col_ptr, &old.row, &by_col, |j, i| value(i, j));
+    let kernel = Kernel {
+        row_ptr,
+        col,
+        k,
+        col_ptr,
+        row,
+        kt,
+        f,
+    };
+    Some(Local::Built(kernel, rows.len(), cols.len()))
+}
+
+/// Sparse lists (`ptr`, `idx`, each list sorted) merged with new (list, entry) pairs (sorted,
+/// distinct), with `value(list, entry)` for every entry; in fixed-size chunks of lists, so the bytes
+/// do not depend on the thread count.
+fn merge_lists(
+    ptr: &[usize],
+    idx: &[u32],
+    new: &[(u32, u32)],
+    value: impl Fn(usize, usize) -> f32 + Sync,
+) -> (Vec<usize>, Vec<u32>, Vec<f32>) {
+    let m = ptr.len() - 1;
+    let mut starts = vec![0usize; m + 1];
+    for &(i, _) in new {
+        starts[i as usize + 1] += 1;
+    }
+    for i in 0..m {
+        starts[i + 1] += starts[i];
+    }
+    let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)> = (0..m.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
+            let (a, b) = (ci * CHUNK, ((ci + 1) * CHUNK).min(m));
+            let mut lens = Vec::with_capacity(b - a);
+            let cap = ptr[b] - ptr[a] + starts[b] - starts[a];
+            let mut out = Vec::with_capacity(cap);
+            let mut vals = Vec::with_capacity(cap);
+            for i in a..b {
+                let before = out.len();
+                let (old, add) = (&idx[ptr[i]..ptr[i + 1]], &new[starts[i]..starts[i + 1]]);
+                let (mut p, mut q) = (0, 0);
+                while p < old.len() || q < add.len() {
+                    let j = match (old.get(p), add.get(q)) {
+                        (Some(&x), Some(&(_, y))) => {
+                            p += usize::from(x <= y);
+                            q += usize::from(y <= x);
+                            x.min(y)
+                        }
+                        (Some(&x), None) => {
+                            p += 1;
+                            x
+                        }
+                        (None, Some(&(_, y))) => {
+                            q += 1;
+                            y
+                        }
+                        (None, None) => unreachable!("the loop runs while one side is left"),
+                    };
+                    out.push(j);
+                    vals.push(value(i, j as usize));
+                }
+                lens.push((out.len() - before) as u32);
+            }
+            (lens, out, vals)
+        })
+        .collect();
+    let mut out_ptr = Vec::with_capacity(m + 1);
+    out_ptr.push(0);
+    let total: usize = chunks.iter().map(|c| c.1.len()).sum();
+    let mut out = Vec::with_capacity(total);
+    let mut vals = Vec::with_capacity(total);
+    for (lens, o, v) in chunks {
+        for l in lens {
+            out_ptr.push(out_ptr.last().unwrap() + l as usize);
+        }
+        out.extend(o);
+        vals.extend(v);
+    }
+    (out_ptr, out, vals)
+}
+
+/// A kernel from its rows (per chunk: row lengths, columns, values), with the transpose.
+fn assemble(
+    chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)>,
+    m: usize,
+    nt: usize,
+    f: Vec<f64>,
+) -> Kernel {
+    let mut row_ptr = Vec::with_capacity(m + 1);
+    row_ptr.push(0);
+    let total: usize = chunks.iter().map(|c| c.1.len()).sum();
+    let mut col = Vec::with_capacity(total);
+    let mut k = Vec::with_capacity(total);
+    for (lens, c, v) in chunks {
+        for l in lens {
+            row_ptr.push(row_ptr.last().unwrap() + l as usize);
+        }
+        col.extend(c);
+        k.extend(v);
+    }
+    let (col_ptr, row, src_pos) = transpose(&row_ptr, &col, nt);
+    let kt = src_pos.iter().map(|&e| k[e]).collect();
+    Kernel {
+        row_ptr,
+        col,
+        k,
+        col_ptr,
+        row,
+        kt,
+        f,
+    }
 }
 
 /// Transposes a CSR pattern (rows ascending inside each column): returns (ptr, idx, position of
@@ -476,29 +757,7 @@ pub(super) fn build<const D: usize>(
             (lens, col, k)
         })
         .collect();
-    let mut row_ptr = Vec::with_capacity(m + 1);
-    row_ptr.push(0);
-    let total: usize = chunks.iter().map(|c| c.1.len()).sum();
-    let mut col = Vec::with_capacity(total);
-    let mut k = Vec::with_capacity(total);
-    for (lens, c, v) in chunks {
-        for l in lens {
-            row_ptr.push(row_ptr.last().unwrap() + l as usize);
-        }
-        col.extend(c);
-        k.extend(v);
-    }
-    let (col_ptr, row, src_pos) = transpose(&row_ptr, &col, ys.len());
-    let kt = src_pos.iter().map(|&e| k[e]).collect();
-    Some(Kernel {
-        row_ptr,
-        col,
-        k,
-        col_ptr,
-        row,
-        kt,
-        f,
-    })
+    Some(assemble(chunks, m, ys.len(), f))
 }
 
 #[cfg(test)]
@@ -506,34 +765,37 @@ mod tests {
     use super::super::hierarchy::Grid;
     use super::*;
 
+    fn pts(seed: f64, n: usize) -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|i| {
+                let t = (i as f64 + seed) * 0.754_877_666;
+                [t.fract(), ((i as f64 + seed) * 0.569_840_29).fract() * 0.5]
+            })
+            .collect()
+    }
+
+    /// Smooth potentials with large gradients (like real ones), optionally with noise.
+    fn potential(ys: &[[f64; 2]], rough: f64) -> Vec<f64> {
+        ys.iter()
+            .enumerate()
+            .map(|(j, y)| {
+                0.9 * (y[0] * y[0] + y[1] * y[1]) - 0.6 * y[0]
+                    + 0.3 * y[1]
+                    + rough * 1e-3 * ((j as f64 * 12.9898).sin() * 43758.5453).fract()
+            })
+            .collect()
+    }
+
     /// The truncation keeps exactly the pairs a dense scan keeps.
     #[allow(clippy::needless_range_loop)]
     #[test]
     fn truncation_equals_dense_scan() {
-        let pts = |seed: f64, n: usize| -> Vec<[f64; 2]> {
-            (0..n)
-                .map(|i| {
-                    let t = (i as f64 + seed) * 0.754_877_666;
-                    [t.fract(), ((i as f64 + seed) * 0.569_840_29).fract() * 0.5]
-                })
-                .collect()
-        };
         let (a, b) = (pts(0.3, 700), pts(0.7, 700));
         let grid = Grid::new(&a, &b);
         let (hs, ht) = (Hierarchy::new(&a, &grid, 5), Hierarchy::new(&b, &grid, 5));
         for (level, rough) in [(2usize, 0.0), (4, 1.0), (5, 0.0), (6, 0.0), (6, 1.0)] {
             let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
-            // Smooth potentials with large gradients (like real ones), optionally with noise.
-            let g: Vec<f64> = ys
-                .pos
-                .iter()
-                .enumerate()
-                .map(|(j, y)| {
-                    0.9 * (y[0] * y[0] + y[1] * y[1]) - 0.6 * y[0]
-                        + 0.3 * y[1]
-                        + rough * 1e-3 * ((j as f64 * 12.9898).sin() * 43758.5453).fract()
-                })
-                .collect();
+            let g = potential(&ys.pos, rough);
             let eps = 1e-3;
             let theta = 8.0;
             let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
@@ -570,6 +832,98 @@ mod tests {
                         .unwrap();
                     assert_eq!(kern.k[pos], kern.kt[e]);
                 }
+            }
+        }
+    }
+
+    /// A local rebuild after some potentials moved keeps its promise against a dense scan: f is
+    /// the exact row minimum (so K ≤ 1), and every pair with reduced cost ≤ (θ − 2τ)ε is kept.
+    #[allow(clippy::needless_range_loop)]
+    #[test]
+    fn local_rebuild_keeps_every_pair_it_promises() {
+        let (a, b) = (pts(0.3, 900), pts(0.7, 900));
+        let grid = Grid::new(&a, &b);
+        let (hs, ht) = (Hierarchy::new(&a, &grid, 5), Hierarchy::new(&b, &grid, 5));
+        let level = hs.point_level();
+        let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
+        let (eps, theta, tau) = (1e-3, 8.0, 0.5);
+        // A c-concave g0 (the c-transform of a c-transform), as Sinkhorn's potentials nearly are:
+        // every column is some row's best, so moving one changes rows' minima.
+        let rough = potential(&ys.pos, 1.0);
+        let f_raw: Vec<f64> = (0..xs.len())
+            .map(|i| {
+                (0..ys.len())
+                    .map(|j| sq(&xs.pos[i], &ys.pos[j]) - rough[j])
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        let g0: Vec<f64> = (0..ys.len())
+            .map(|j| {
+                (0..xs.len())
+                    .map(|i| sq(&xs.pos[i], &ys.pos[j]) - f_raw[i])
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        let whole = build(&hs, &ht, level, &g0, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
+        // Every column moves a little (below τε); a patch of columns moves by up to ±12ε, and one
+        // column by 40ε (it becomes the best column of rows that never saw it).
+        let g: Vec<f64> = g0
+            .iter()
+            .zip(&ys.pos)
+            .enumerate()
+            .map(|(j, (&v, y))| {
+                let small = 0.4 * eps * ((j as f64 * 0.37).sin());
+                let patch = if (y[0] - 0.5).abs() < 0.15 && y[1] < 0.25 {
+                    12.0 * eps * ((j as f64 * 1.3).sin())
+                } else {
+                    0.0
+                };
+                let jump = if j == 17 { 40.0 * eps } else { 0.0 };
+                v + small + patch + jump
+            })
+            .collect();
+        let Some(Local::Built(kern, rows, cols)) = rebuild_local(
+            &hs,
+            &ht,
+            level,
+            &whole,
+            &g,
+            &whole.f,
+            &g0,
+            eps,
+            theta,
+            tau,
+            Wrap::Clamp,
+            usize::MAX,
+            xs.len(),
+        ) else {
+            panic!("the local rebuild was refused");
+        };
+        assert!(
+            rows > 0 && cols > 0 && cols < ys.len() / 4,
+            "{rows} rows, {cols} cols"
+        );
+        for i in 0..xs.len() {
+            let f = (0..ys.len())
+                .map(|j| sq(&xs.pos[i], &ys.pos[j]) - g[j])
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(kern.f[i], f, "row {i}: f is the exact row minimum");
+            let kept = &kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
+            for j in 0..ys.len() {
+                let reduced = sq(&xs.pos[i], &ys.pos[j]) - f - g[j];
+                assert!(reduced >= -1e-12, "pair ({i},{j}) below its row minimum");
+                if reduced <= (theta - 2.0 * tau) * eps {
+                    assert!(kept.contains(&(j as u32)), "pair ({i},{j}) at {reduced:e}");
+                }
+            }
+        }
+        // Entries and their transpose hold the values of the new potentials.
+        for j in 0..ys.len() {
+            for e in kern.col_ptr[j]..kern.col_ptr[j + 1] {
+                let i = kern.row[e] as usize;
+                let c = sq(&xs.pos[i], &ys.pos[j]);
+                let want = ((kern.f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32;
+                assert_eq!(kern.kt[e], want);
             }
         }
     }

@@ -252,6 +252,11 @@ struct State {
     v: Vec<f64>,
     /// Target potential the kernel was built with.
     g: Vec<f64>,
+    /// Potentials of the last whole kernel build (the reference of local rebuilds), and whether a
+    /// local rebuild has happened since.
+    f0: Vec<f64>,
+    g0: Vec<f64>,
+    local: bool,
 }
 
 fn run<const D: usize>(
@@ -372,10 +377,13 @@ fn run<const D: usize>(
         let mut st = State {
             level,
             eps,
-            kernel,
             u: a.clone(),
             v: bm.clone(),
+            f0: kernel.f.clone(),
+            g0: g.clone(),
+            kernel,
             g,
+            local: false,
         };
         let t0 = std::time::Instant::now();
         let last = stage + 1 == blurs.len();
@@ -623,6 +631,14 @@ fn build_kernel<const D: usize>(
 /// Rows per parallel work item.
 const CHUNK: usize = 2048;
 
+/// A row or column has moved (and a local rebuild searches it again) when its potential is more
+/// than τε = `LOCAL_MOVE`·θε from the last whole build's.
+const LOCAL_MOVE: f64 = 1.0 / 16.0;
+
+/// A local rebuild gives way to a whole one when more than 1/`LOCAL_SHARE` of the rows or of the
+/// columns moved (searching them would cost about as much).
+const LOCAL_SHARE: usize = 2;
+
 /// Iterations after a kernel build beyond which a drift past θε forces a rebuild (see `iterate`):
 /// without it, a stage whose scalings settle between θε and 2θε on a support that cannot carry the
 /// marginals stalls (disconnected supports did, at 2e-3 after 2000 iterations).
@@ -658,6 +674,10 @@ fn iterate<const D: usize>(
     // limit was θε: 2θε took the 250K 3D cow's final stage from 7 to 5 kernel builds with the same
     // iterations, and the 250K duck from 17.4 to 15.4 s of CPU.)
     let drift_soft = (settings.truncate / 4.0).exp();
+    // After a local rebuild dropped pairs are only (θ − 2τ)ε out (see `kernel::rebuild_local`), so a
+    // stage ends only within (θ/4 − τ)ε of it: its final guarantee stays θε/2, as after a whole build.
+    let tau = settings.truncate * LOCAL_MOVE;
+    let drift_soft_local = (settings.truncate / 4.0 - tau).exp();
     let drift_hard = (2.0 * settings.truncate).exp();
     let drift_stale = settings.truncate.exp();
     let mut since_build = 0u32;
@@ -747,7 +767,12 @@ fn iterate<const D: usize>(
         }
         let far = drift.iter().fold(rows_far, |a, &d| a.max(d));
         let converged = it > 1 && error <= tol;
-        if converged && far <= drift_soft {
+        let soft = if st.local {
+            drift_soft_local
+        } else {
+            drift_soft
+        };
+        if converged && far <= soft {
             return Ok(StageLog {
                 iterations: it,
                 converged: true,
@@ -758,14 +783,49 @@ fn iterate<const D: usize>(
         // A support that has drifted past θε may be unable to carry the marginals at all (the
         // stage would stall short of the tolerance): past θε a stage gets STALE_ITERATIONS more.
         let stale = far > drift_stale && since_build >= STALE_ITERATIONS;
-        if far > drift_hard || stale || (converged && far > drift_soft) {
-            // Absorb and rebuild the kernel around the new potentials.
+        if far > drift_hard || stale || (converged && far > soft) {
+            // Absorb and rebuild the kernel around the new potentials: locally (only the rows and
+            // columns that moved) while few moved, else whole.
             let g = absorbed(&st.g, &st.v, &b, st.eps);
             let tk = std::time::Instant::now();
-            st.kernel = build_kernel(hs, ht, st.level, &g, st.eps, settings, wrap, spacing)?;
+            let rows = hs.levels[st.level].len();
+            let limit = MAX_PAIRS_PER_POINT
+                .saturating_mul(rows.max(1))
+                .min(MAX_PAIRS);
+            let local = kernel::rebuild_local(
+                hs,
+                ht,
+                st.level,
+                &st.kernel,
+                &g,
+                &st.f0,
+                &st.g0,
+                st.eps,
+                settings.truncate,
+                tau,
+                wrap,
+                limit,
+                rows.max(ht.levels[st.level].len()) / LOCAL_SHARE,
+            );
+            let how = match local {
+                Some(kernel::Local::Built(k, r, c)) => {
+                    st.kernel = k;
+                    st.local = true;
+                    format!("local ({r} rows, {c} columns)")
+                }
+                Some(kernel::Local::TooMany) | None => {
+                    // Past the pair limit the whole build decides (and reports it).
+                    st.kernel =
+                        build_kernel(hs, ht, st.level, &g, st.eps, settings, wrap, spacing)?;
+                    st.f0 = st.kernel.f.clone();
+                    st.g0 = g.clone();
+                    st.local = false;
+                    "whole".to_string()
+                }
+            };
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!(
-                    "  rebuild at it {it} (drift e^{:.2}) {:.2}s",
+                    "  rebuild at it {it} (drift e^{:.2}) {how} {:.2}s",
                     far.ln(),
                     tk.elapsed().as_secs_f64()
                 );
