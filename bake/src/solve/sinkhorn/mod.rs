@@ -631,6 +631,33 @@ fn build_kernel<const D: usize>(
 /// Rows per parallel work item.
 const CHUNK: usize = 2048;
 
+/// Over-relaxed Sinkhorn (Thibault, Chizat, Dossal, Papadakis 2021): a scaling moves ω times its
+/// plain update in the log domain, s ← s^(1−ω) (m / Ks)^ω. Near convergence Sinkhorn's error
+/// shrinks by a constant factor per iteration that tends to 1 as ε falls; ω in (1, 2) shrinks it
+/// much faster. Measured (iterations over all stages): 50K 3D cow 568 → 197, 100K duck 1834 → 453,
+/// 250K cow 868 → 335 (the final stage 226 → 98 iterations: 37.6 → 33.6 s of CPU; with the final
+/// stage plain, 464). A safeguard returns to plain steps if the error ever grows 1000-fold (a
+/// divergence; a factor 2 fired on the ordinary oscillations and cost most of the gain).
+const OVER_RELAXATION: f64 = 1.8;
+
+/// Plain iterations after each kernel build before over-relaxation starts (the first iterations
+/// absorb the build's hard row minima).
+const RELAX_AFTER: u32 = 5;
+
+/// Over-relaxation stops (until the next build) when the error exceeds this multiple of the
+/// lowest error seen since the build.
+const RELAX_GROWTH: f64 = 1e3;
+
+/// One scaling update, over-relaxed by `omega` (1: the plain update).
+#[inline]
+fn relax(old: f64, plain: f64, omega: f64) -> f64 {
+    if omega == 1.0 {
+        plain
+    } else {
+        old.powf(1.0 - omega) * plain.powf(omega)
+    }
+}
+
 /// A row or column has moved (and a local rebuild searches it again) when its potential is more
 /// than τε = `LOCAL_MOVE`·θε from the last whole build's.
 const LOCAL_MOVE: f64 = 1.0 / 16.0;
@@ -682,10 +709,21 @@ fn iterate<const D: usize>(
     let drift_stale = settings.truncate.exp();
     let mut since_build = 0u32;
     let mut u_ref: Option<Vec<f64>> = None;
+    // Over-relaxation (see OVER_RELAXATION): off for the first iterations after a build, off for
+    // good (until the next build) once the error grows, and off before the stage may end, so the
+    // stage's last iteration is a plain Sinkhorn step with exact column marginals.
+    let mut plain = false;
+    let mut prev_plain = true;
+    let mut lowest = f64::INFINITY;
     while it < settings.max_iterations {
         it += 1;
         // Row update; its error term is the row marginal of the previous column update.
         let (kern, v, uref) = (&st.kernel, &st.v, u_ref.as_deref());
+        let omega = if plain || since_build < RELAX_AFTER {
+            1.0
+        } else {
+            OVER_RELAXATION
+        };
         let rows: Vec<(f64, f64)> =
             st.u.par_chunks_mut(CHUNK)
                 .enumerate()
@@ -699,7 +737,7 @@ fn iterate<const D: usize>(
                             s += f64::from(kern.k[p]) * v[kern.col[p] as usize];
                         }
                         e += (*u * s - a[i]).abs();
-                        *u = a[i] / s;
+                        *u = relax(*u, a[i] / s, omega);
                         if let Some(r0) = uref {
                             let r = *u / r0[i];
                             let r = r.max(1.0 / r);
@@ -731,7 +769,7 @@ fn iterate<const D: usize>(
                         for p in kern.col_ptr[j]..kern.col_ptr[j + 1] {
                             t += f64::from(kern.kt[p]) * u[kern.row[p] as usize];
                         }
-                        *v = b[j] / t;
+                        *v = relax(*v, b[j] / t, omega);
                         let r = *v / b[j];
                         let r = r.max(1.0 / r);
                         far = if r.is_nan() {
@@ -766,7 +804,14 @@ fn iterate<const D: usize>(
             });
         }
         let far = drift.iter().fold(rows_far, |a, &d| a.max(d));
-        let converged = it > 1 && error <= tol;
+        // The error is the row marginal of the previous iteration's plan, whose columns are exact
+        // only if that iteration was plain.
+        let converged = it > 1 && error <= tol && prev_plain;
+        if error <= tol || error > RELAX_GROWTH * lowest {
+            plain = true;
+        }
+        lowest = lowest.min(error);
+        prev_plain = omega == 1.0;
         let soft = if st.local {
             drift_soft_local
         } else {
@@ -835,6 +880,8 @@ fn iterate<const D: usize>(
             st.v = b.clone();
             u_ref = None;
             since_build = 0;
+            plain = false;
+            lowest = f64::INFINITY;
             *rebuilds += 1;
         }
     }
