@@ -543,7 +543,7 @@ pub(super) fn rebuild_local<const D: usize>(
         let c = cost::sq(wrap, &xs.pos[i], &ys.pos[j]);
         ((f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32
     };
-    let (row_ptr, col, k) = merge_lists(&old.row_ptr, &old.col, &extra, |i, j| value(i, j));
+    let (row_ptr, col, k) = merge_lists(&old.row_ptr, &old.col, &extra, value);
     let mut by_col: Vec<(u32, u32)> = extra.iter().map(|&(i, j)| (j, i)).collect();
     by_col.par_sort_unstable();
     let (col_ptr, row, kt) = merge_lists(&old.col_ptr, &old.row, &by_col, |j, i| value(i, j));
