@@ -262,6 +262,10 @@ impl Prepared<'_> {
                 Ok(None) => {}
                 Err(()) => {
                     chunk.splat(kp, scale, stride, density, color.as_deref_mut());
+                    let mut out = crate::splat::Planar {
+                        density: &mut *density,
+                        color: color.as_deref_mut(),
+                    };
                     crate::splat_region::splat_point(
                         axes,
                         &[x, y],
@@ -269,8 +273,7 @@ impl Prepared<'_> {
                         kp,
                         radius,
                         scale,
-                        density,
-                        color.as_deref_mut(),
+                        &mut out,
                     );
                 }
             }
