@@ -14,11 +14,14 @@ use crate::MAX_DIM;
 /// How far a splat may be from point queries: the relative bound on the difference between one
 /// splat term and the corresponding point-query term.
 ///
-/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`) counts a point at
+/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`, the RGBA region
+/// splats `Prepared::splat_region_rgba` and `Blend::splat_region_rgba`) counts a point at
 /// exactly the cells a point query at the cell's center counts it (squared distance
 /// `r² = Σ_k t_k²`, summed in axis order, `<=` the squared cutoff radius), but weighs it by a
 /// product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
-/// `g_k = exp(−t_k² / 2σ²)` and `scale = norm / n` (a color channel: `(g_0 · c · mean mass) · P`),
+/// `g_k = exp(−t_k² / 2σ²)` (computed by the splat's own exponential, `kernel::splat_exp`, a
+/// shorter one than the point query's) and `scale = norm / n` (a color channel:
+/// `(g_0 · c · mean mass) · P`),
 /// instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact arithmetic the two
 /// are equal (the Gaussian is separable); the product lets a splat compute `d` small tables of
 /// factors per point instead of an exponential per (point, cell) pair, which is what makes
@@ -27,9 +30,9 @@ use crate::MAX_DIM;
 /// In floats they differ by rounding. With `u = 2⁻²⁴` and exponents `|x| <= 4.5` inside the cutoff:
 /// the point query's exponent carries at most `4.5·d·u` of rounding (the `d − 1` additions of `r²`
 /// and the product by `−1/2σ²`), the splat's `d` exponents together `4.5·u` (each is rounded once
-/// and they sum to the point query's), every `exp` 3e-7 relative (tested in `kernel.rs`: one for
-/// the query, `d` for the splat), and the splat's `d` products `u` each: at most 3.1e-6 per term in
-/// 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
+/// and they sum to the point query's), every exponential 3e-7 relative (tested in `kernel.rs`:
+/// one `exp` for the query, `d` of `splat_exp`, within 2.5e-7, for the splat), and the splat's `d`
+/// products `u` each: at most 3.1e-6 per term in 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
 /// Summing `m` terms in `f32`, in the same order, adds at most `m·u` relative error to each of the
 /// two sums, so for a cell that `m` points reach
 ///
@@ -324,7 +327,7 @@ pub(crate) fn splat_cells<const D: usize>(
                 *s = t * t;
             }
             for (g, &s) in g[k].iter_mut().zip(&sq[k]).take(len) {
-                *g = kp.weight(s);
+                *g = kp.factor(s);
             }
         }
     }
@@ -335,7 +338,7 @@ pub(crate) fn splat_cells<const D: usize>(
             (true, Some(&s), Some(&g)) => (s, g),
             _ => {
                 let t = y[k] - axes.center(k, i);
-                (t * t, kp.weight(t * t))
+                (t * t, kp.factor(t * t))
             }
         }
     };

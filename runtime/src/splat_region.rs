@@ -155,11 +155,11 @@ fn splat_block<const D: usize, const B: usize>(
         let t = y[0] - cx[i];
         s0[i] = t * t;
     }
-    let g0 = kp.weights(&s0);
+    let g0 = kp.factors(&s0);
     // Factors of the other axes, over all their lanes (one vector loop each).
     let mut g = [[0.0f32; LANES]; D];
     for k in 1..D {
-        g[k] = kp.weights(&spans[k].sq);
+        g[k] = kp.factors(&spans[k].sq);
     }
     let mut idx = [0usize; D];
     loop {

@@ -22,7 +22,7 @@
 //!
 //! Points go in chunks of [`N`]: one vector loop places all blocks (three squared distances per
 //! axis, centers by the grid's formula `(i + ½)/res`, the same bits as `Axes`' table), one
-//! computes all factors (`kernel::Prepared::weight`, lane by lane the reference's operations),
+//! computes all factors (`kernel::Prepared::factor`, lane by lane the reference's operations),
 //! then each point adds its nine cells: per cell `(g_0 · [1, c]) · (g_1 · scale)`, the reference's
 //! products, with lanes outside the cutoff adding `−0.0` (which changes no float).
 
@@ -184,7 +184,7 @@ impl Chunk {
         }
         // Every factor of the chunk in one vector loop; the rows' `g_1 · scale`.
         for (g, &s) in g.as_flattened_mut().iter_mut().zip(sq.as_flattened()) {
-            *g = cx.kp.weight(s);
+            *g = cx.kp.factor(s);
         }
         for (p, &g) in py.as_flattened_mut().iter_mut().zip(g[3..].as_flattened()) {
             *p = g * cx.scale;
