@@ -2,7 +2,8 @@
 //! `splat` (`Prepared::splat_region` of a whole 256² image at σ = 0.5 px), `rgba`
 //! (`Prepared::splat_region_rgba`, same image), `mixed` (`Blend::splat_region_rgba`: the same
 //! without `prepare`, the maps mixed as the splat reads them), `grid` (`Prepared::point_grid`, same
-//! image) or `prepare` (`Blend::prepare`), equal weights.
+//! image), `prepare` (`Blend::prepare`), or a whole render, `render-splat` / `render-query`
+//! (`otbake::render::render`, on rayon's threads: `RAYON_NUM_THREADS=1` for one), equal weights.
 //!
 //! ```sh
 //! cargo run --release --example region_probe -- manifests/shapes.toml splat 100
@@ -14,7 +15,7 @@
 //! (`otbake bake`, or `blend_timing`, which bakes what is missing).
 
 use otbake::manifest::Manifest;
-use otbake::render::Archives;
+use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake_runtime::{Blend, Kernel, PointValue, Region};
 use std::time::Instant;
 
@@ -29,7 +30,7 @@ fn thread_cpu() -> f64 {
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let (Some(path), Some(which)) = (args.get(1), args.get(2)) else {
-        anyhow::bail!("usage: region_probe MANIFEST splat|rgba|mixed|grid|prepare [REPEATS]");
+        anyhow::bail!("usage: region_probe MANIFEST splat|rgba|mixed|grid|prepare|render-splat|render-query [REPEATS]");
     };
     let repeats: usize = args.get(3).map(|r| r.parse()).transpose()?.unwrap_or(100);
     let m = Manifest::load(std::path::Path::new(path))?;
@@ -61,6 +62,23 @@ fn main() -> anyhow::Result<()> {
             blend.prepare(&weights, sizes.split(&mut store).expect("sized by total"))?;
             Ok(())
         })?,
+        "render-splat" | "render-query" => {
+            let settings = RenderSettings {
+                width: 256,
+                height: 256,
+                method: if which == "render-splat" {
+                    Method::Splat
+                } else {
+                    Method::Query
+                },
+                sigma_px: 0.5,
+            };
+            let proxy = archives.proxy()?;
+            timed(&mut || {
+                render(proxy, &maps, &weights, &settings)?;
+                Ok(())
+            })?
+        }
         "mixed" => timed(&mut || {
             Ok(blend.splat_region_rgba(&weights, kernel, Region::full(res), &mut rgba)?)
         })?,

@@ -304,7 +304,7 @@ impl<'a> Blend<'a, '_> {
             depth: self.depth,
             has_color: self.has_color,
             missing_node_colors: self.missing_node_colors,
-            mean_mass: self.mean_mass(weights),
+            mean_mass: self.mixed_mean_mass(weights),
             wrap: self.wrap,
             positions,
             colors,

@@ -82,7 +82,7 @@ impl<'s, 'a, 'm> Mixed<'s, 'a, 'm> {
                 .maps
                 .iter()
                 .all(|m| m.storage().positions == Precision::F32),
-            mean_mass: blend.mean_mass(weights),
+            mean_mass: blend.mixed_mean_mass(weights),
         }
     }
 }

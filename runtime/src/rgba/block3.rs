@@ -31,7 +31,7 @@ use crate::footprint::Axes;
 use crate::grid::walk_nodes;
 use crate::kernel;
 use crate::periodic::Shifts;
-use crate::splat::{premultiplied, Rgba};
+use crate::splat::Rgba;
 use crate::splat_region::splat_point;
 
 /// Points per chunk.
@@ -124,6 +124,8 @@ struct Chunk {
     len: usize,
     pos: [f32; 2 * N],
     col: [f32; 3 * N],
+    /// Each point's `[1, cm]`: density, then its premultiplied color.
+    cv: [[f32; 4]; N],
     /// Squared distances along x (rows 0..3) and y (3..6) of every point's block.
     sq: [[f32; N]; 6],
     /// Their factors.
@@ -161,6 +163,7 @@ impl Chunk {
         let Self {
             pos,
             col,
+            cv,
             sq,
             g,
             py,
@@ -200,31 +203,50 @@ impl Chunk {
                 }
             }
         }
+        // Every point's `[1, cm]` (density, then its premultiplied color).
+        for (v, c) in cv.iter_mut().zip(col.chunks_exact(3)) {
+            *v = [
+                1.0,
+                c[0] * cx.mean_mass,
+                c[1] * cx.mean_mass,
+                c[2] * cx.mean_mass,
+            ];
+        }
+        let (s4, span) = (cx.stride * 4, cx.stride * 8 + 12);
         for p in 0..len {
-            let (x, y) = (pos[2 * p], pos[2 * p + 1]);
-            let c = [col[3 * p], col[3 * p + 1], col[3 * p + 2]];
-            let cm = premultiplied(c, cx.mean_mass);
+            let cv = cv[p];
             if ok[p] == 0 {
+                let (x, y) = (pos[2 * p], pos[2 * p + 1]);
+                let cm = [cv[1], cv[2], cv[3]];
                 splat_point(cx.axes, &[x, y], &cm, cx.kp, cx.radius, cx.scale, out);
                 continue;
             }
-            // Density, then color.
-            let cv = [1.0, cm[0], cm[1], cm[2]];
             // Negated `g_0 · [1, cm]` (negation is exact): a kept lane is flipped back below by
             // the sign flip that also turns a dropped lane's 0 into −0.0.
             let gn: [[f32; 4]; 3] = core::array::from_fn(|i| {
                 let g0 = -g[i][p];
                 cv.map(|c| g0 * c)
             });
+            // The block's three rows of three cells (in the region: blocks are moved inside it,
+            // so the checks below never fail).
             let at = (mid[1][p].wrapping_sub(1 + cx.y.first) as usize)
                 .wrapping_mul(cx.stride)
-                .wrapping_add(mid[0][p].wrapping_sub(1 + cx.x.first) as usize);
-            for j in 0..3 {
-                let row = at.wrapping_add(j * cx.stride);
-                let pj = py[j][p];
-                let Some(cells) = out.cells.get_mut(row * 4..row * 4 + 12) else {
+                .wrapping_add(mid[0][p].wrapping_sub(1 + cx.x.first) as usize)
+                .wrapping_mul(4);
+            let Some(block) = out.cells.get_mut(at..at.wrapping_add(span)) else {
+                continue;
+            };
+            let Some((r0, rest)) = block.split_at_mut_checked(s4) else {
+                continue;
+            };
+            let Some((r1, r2)) = rest.split_at_mut_checked(s4) else {
+                continue;
+            };
+            for (j, row) in [r0, r1, r2].into_iter().enumerate() {
+                let Some(cells) = row.first_chunk_mut::<12>() else {
                     continue;
                 };
+                let pj = py[j][p];
                 for i in 0..3 {
                     let drop = drop[3 * j + i][p];
                     for ch in 0..4 {
@@ -260,6 +282,7 @@ pub(crate) fn splat(
         len: 0,
         pos: [0.0; 2 * N],
         col: [0.0; 3 * N],
+        cv: [[0.0; 4]; N],
         sq: [[0.0; N]; 6],
         g: [[0.0; N]; 6],
         py: [[0.0; N]; 3],
@@ -278,10 +301,13 @@ pub(crate) fn splat(
                 chunk.col.get_mut(3 * at..3 * (at + count)),
             ) {
                 s.fill::<2>(node, start, p, c);
-                // The points in the image being visited, as `periodic::Shifted` moves them.
-                for y in p.chunks_exact_mut(2) {
-                    y[0] -= m[0];
-                    y[1] -= m[1];
+                // The points in the image being visited, as `periodic::Shifted` moves them (the
+                // clamped blend's one image is the blend itself: `y − 0 = y`).
+                if *m != [0.0; 2] {
+                    for y in p.chunks_exact_mut(2) {
+                        y[0] -= m[0];
+                        y[1] -= m[1];
+                    }
                 }
             }
             chunk.len = at + count;
