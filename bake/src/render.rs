@@ -198,7 +198,7 @@ pub fn render<'a>(
         }
         Method::Splat => {
             // No `prepare`: each band's splat mixes the maps as its traversal reads them (the
-            // points near the band only), into RGBA cells (density, then color), and shades its
+            // points near the band only), into RGBA cells (color, then density), and shades its
             // rows while they are in cache.
             let mean_mass = blend.mean_mass(weights).map_err(runtime("--weights"))?;
             let mut rgba = SPLAT.with(|b| std::mem::take(&mut *b.borrow_mut()));
@@ -213,7 +213,7 @@ pub fn render<'a>(
                     let region = Region::rows(res, (b * band) as u32, rows);
                     blend.splat_region_rgba(weights, kernel, region, cells)?;
                     for (px, c) in pixels.chunks_exact_mut(4).zip(cells.chunks_exact(4)) {
-                        px.copy_from_slice(&shade(rule, c[0] * mean_mass, [c[1], c[2], c[3]]));
+                        px.copy_from_slice(&shade(rule, c[3] * mean_mass, [c[0], c[1], c[2]]));
                     }
                     Ok(())
                 })
@@ -230,7 +230,7 @@ thread_local! {
     /// Point values of the last `query` image rendered on this thread (reused, like `PREPARED`:
     /// fresh megabytes per image cost page faults on every image).
     static VALUES: std::cell::RefCell<Vec<PointValue>> = const { std::cell::RefCell::new(Vec::new()) };
-    /// RGBA cells (density, then color) of the last `splat` image rendered on this thread.
+    /// RGBA cells (color, then density) of the last `splat` image rendered on this thread.
     static SPLAT: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 

@@ -1,6 +1,6 @@
 //! Region splats into RGBA cells ([`Prepared::splat_region_rgba`], [`Blend::splat_region_rgba`]):
-//! four floats per cell (density, then the three premultiplied color channels), so that one
-//! point's term at one cell is one 4-wide vector.
+//! four floats per cell (the three premultiplied color channels, then the density where alpha
+//! goes), so that one point's term at one cell is one 4-wide vector.
 //!
 //! The points come from the same walk as every region query (`grid::walk_nodes`: pruning by node
 //! boxes, whole subtrees handed over, one pass per image of a periodic blend), a run of points at
@@ -242,7 +242,8 @@ fn general<const D: usize>(
 
 impl Prepared<'_> {
     /// [`Prepared::splat_region`] into RGBA cells: `rgba` holds four values per cell of `region`
-    /// (axis 0 fastest) — the density, then the three premultiplied color channels — and receives
+    /// (axis 0 fastest) — the three premultiplied color channels, then the density (where alpha
+    /// goes) — and receives
     /// exactly the bits [`Blend::splat`] adds to the density and color buffers of those cells of the
     /// whole grid (a blend without color adds zeros to the color channels, as it does to a color
     /// buffer). The

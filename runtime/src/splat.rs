@@ -187,8 +187,8 @@ pub(crate) fn premultiplied(c: [f32; 3], mean_mass: f32) -> [f32; 3] {
 }
 
 /// The cells a splat adds its terms to, in one of the two layouts a caller can give: planar (one
-/// density per cell, optionally three color values per cell) or RGBA (four values per cell:
-/// density, then the three color channels). Either way a cell gets the same terms in the same
+/// density per cell, optionally three color values per cell) or RGBA (four values per cell: the
+/// three color channels, then the density where alpha goes). Either way a cell gets the same terms in the same
 /// order, so the layouts hold the same bits.
 pub(crate) trait Cells {
     /// Adds one point's term to region cell `cell`: `g0 · p` to the density and `(g0 · cm[k]) · p`
@@ -261,8 +261,8 @@ impl Cells for Planar<'_> {
     }
 }
 
-/// RGBA cells: density and three color channels per cell (a blend without color adds its zero
-/// color terms, as to a planar color buffer).
+/// RGBA cells: three color channels, then the density, per cell (a blend without color adds its
+/// zero color terms, as to a planar color buffer).
 pub(crate) struct Rgba<'b> {
     pub cells: &'b mut [f32],
 }
@@ -271,10 +271,10 @@ impl Cells for Rgba<'_> {
     #[inline(always)]
     fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
         if let Some(px) = self.cells.get_mut(cell * 4..cell * 4 + 4) {
-            px[0] += g0 * p;
-            for (v, c) in px[1..].iter_mut().zip(cm) {
+            for (v, c) in px.iter_mut().zip(cm) {
                 *v += (g0 * c) * p;
             }
+            px[3] += g0 * p;
         }
     }
 

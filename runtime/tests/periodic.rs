@@ -353,7 +353,7 @@ proptest! {
             prep.splat_region_rgba(kernel, r, &mut pr).unwrap();
             blend.splat_region_rgba(&w, kernel, r, &mut br).unwrap();
             for cell in 0..b - a {
-                let want = [d0[a + cell], c0[3 * (a + cell)], c0[3 * (a + cell) + 1], c0[3 * (a + cell) + 2]];
+                let want = [c0[3 * (a + cell)], c0[3 * (a + cell) + 1], c0[3 * (a + cell) + 2], d0[a + cell]];
                 for ch in 0..4 {
                     prop_assert_eq!(pr[cell * 4 + ch].to_bits(), want[ch].to_bits(), "band {} cell {}", start, cell);
                     prop_assert_eq!(br[cell * 4 + ch].to_bits(), want[ch].to_bits(), "band {} cell {}", start, cell);
@@ -430,7 +430,7 @@ proptest! {
                 for ch in 0..3 {
                     prop_assert_eq!(c[cell * 3 + ch].to_bits(), full_c[g * 3 + ch].to_bits());
                 }
-                let want = [full_d[g], full_c[3 * g], full_c[3 * g + 1], full_c[3 * g + 2]];
+                let want = [full_c[3 * g], full_c[3 * g + 1], full_c[3 * g + 2], full_d[g]];
                 for ch in 0..4 {
                     prop_assert_eq!(pr[cell * 4 + ch].to_bits(), want[ch].to_bits(), "{:?} cell {} (rgba)", region, cell);
                     prop_assert_eq!(br[cell * 4 + ch].to_bits(), want[ch].to_bits(), "{:?} cell {} (rgba, mixed)", region, cell);

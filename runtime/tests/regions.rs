@@ -53,8 +53,8 @@ fn global(dim: usize, region: &Region, cell: usize) -> (usize, Vec<f32>) {
     (g, c)
 }
 
-/// Checks RGBA region cells (`rgba`, four per cell of `region`) against the planar buffers of the
-/// whole grid (`density`, `color`): the same bits, channel by channel.
+/// Checks RGBA region cells (`rgba`, four per cell of `region`: color, then density) against the
+/// planar buffers of the whole grid (`density`, `color`): the same bits, channel by channel.
 fn assert_rgba(
     dim: usize,
     region: &Region,
@@ -65,7 +65,7 @@ fn assert_rgba(
     for cell in 0..region.cells(dim).unwrap() {
         let (g, _) = global(dim, region, cell);
         prop_assert_eq!(
-            rgba[cell * 4].to_bits(),
+            rgba[cell * 4 + 3].to_bits(),
             density[g].to_bits(),
             "{:?} cell {} density",
             region,
@@ -73,7 +73,7 @@ fn assert_rgba(
         );
         for a in 0..3 {
             prop_assert_eq!(
-                rgba[cell * 4 + 1 + a].to_bits(),
+                rgba[cell * 4 + a].to_bits(),
                 color[g * 3 + a].to_bits(),
                 "{:?} cell {} channel {}",
                 region,
@@ -102,8 +102,8 @@ fn rgba_start(dim: usize, region: &Region, density: &[f32], color: &[f32]) -> Ve
     let mut rgba = vec![0.0f32; cells * 4];
     for cell in 0..cells {
         let (g, _) = global(dim, region, cell);
-        rgba[cell * 4] = density[g];
-        rgba[cell * 4 + 1..cell * 4 + 4].copy_from_slice(&color[g * 3..g * 3 + 3]);
+        rgba[cell * 4..cell * 4 + 3].copy_from_slice(&color[g * 3..g * 3 + 3]);
+        rgba[cell * 4 + 3] = density[g];
     }
     rgba
 }
@@ -427,10 +427,10 @@ fn image_sized_regions_match_their_references() {
         }
         for cell in 0..256 * 256 {
             let want = [
-                density[cell],
                 color[3 * cell],
                 color[3 * cell + 1],
                 color[3 * cell + 2],
+                density[cell],
             ];
             for a in 0..4 {
                 assert_eq!(
@@ -585,7 +585,7 @@ fn points_on_cutoff_ties_keep_their_bits() {
             for a in 0..3 {
                 assert_eq!(c1[cell * 3 + a].to_bits(), c0[cell * 3 + a].to_bits());
             }
-            let want = [d0[cell], c0[cell * 3], c0[cell * 3 + 1], c0[cell * 3 + 2]];
+            let want = [c0[cell * 3], c0[cell * 3 + 1], c0[cell * 3 + 2], d0[cell]];
             for a in 0..4 {
                 assert_eq!(
                     r1[cell * 4 + a].to_bits(),
@@ -664,7 +664,7 @@ fn very_fine_grids_match_point_queries() {
         let mut rgba = vec![0.0f32; cells * 4];
         prep.splat_region_rgba(kernel, region, &mut rgba).unwrap();
         for cell in 0..cells {
-            let want = [d[cell], c[3 * cell], c[3 * cell + 1], c[3 * cell + 2]];
+            let want = [c[3 * cell], c[3 * cell + 1], c[3 * cell + 2], d[cell]];
             for a in 0..4 {
                 assert_eq!(
                     rgba[cell * 4 + a].to_bits(),

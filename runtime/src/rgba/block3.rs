@@ -23,7 +23,7 @@
 //! Points go in chunks of [`N`]: one vector loop places all blocks (three squared distances per
 //! axis, centers by the grid's formula `(i + ½)/res`, the same bits as `Axes`' table), one
 //! computes all factors (`kernel::Prepared::factor`, lane by lane the reference's operations),
-//! then each point adds its nine cells: per cell `(g_0 · [1, c]) · (g_1 · scale)`, the reference's
+//! then each point adds its nine cells: per cell `(g_0 · [c, 1]) · (g_1 · scale)`, the reference's
 //! products, with lanes outside the cutoff adding `−0.0` (which changes no float).
 
 use super::Fill;
@@ -124,7 +124,7 @@ struct Chunk {
     len: usize,
     pos: [f32; 2 * N],
     col: [f32; 3 * N],
-    /// Each point's `[1, cm]`: density, then its premultiplied color.
+    /// Each point's `[cm, 1]`: its premultiplied color, then the density's 1.
     cv: [[f32; 4]; N],
     /// Squared distances along x (rows 0..3) and y (3..6) of every point's block.
     sq: [[f32; N]; 6],
@@ -203,25 +203,23 @@ impl Chunk {
                 }
             }
         }
-        // Every point's `[1, cm]` (density, then its premultiplied color).
-        for (v, c) in cv.iter_mut().zip(col.chunks_exact(3)) {
-            *v = [
-                1.0,
-                c[0] * cx.mean_mass,
-                c[1] * cx.mean_mass,
-                c[2] * cx.mean_mass,
-            ];
+        // Every point's `[cm, 1]`: its premultiplied color, then the density's 1.
+        let m = cx.mean_mass;
+        for (v, c) in cv.chunks_exact_mut(4).zip(col.chunks_exact(12)) {
+            for k in 0..4 {
+                v[k] = [c[3 * k] * m, c[3 * k + 1] * m, c[3 * k + 2] * m, 1.0];
+            }
         }
         let (s4, span) = (cx.stride * 4, cx.stride * 8 + 12);
         for p in 0..len {
             let cv = cv[p];
             if ok[p] == 0 {
                 let (x, y) = (pos[2 * p], pos[2 * p + 1]);
-                let cm = [cv[1], cv[2], cv[3]];
+                let cm = [cv[0], cv[1], cv[2]];
                 splat_point(cx.axes, &[x, y], &cm, cx.kp, cx.radius, cx.scale, out);
                 continue;
             }
-            // Negated `g_0 · [1, cm]` (negation is exact): a kept lane is flipped back below by
+            // Negated `g_0 · [cm, 1]` (negation is exact): a kept lane is flipped back below by
             // the sign flip that also turns a dropped lane's 0 into −0.0.
             let gn: [[f32; 4]; 3] = core::array::from_fn(|i| {
                 let g0 = -g[i][p];
