@@ -3,11 +3,13 @@
 //! ```sh
 //! cargo run --release --example blend_timing -- manifests/shapes.toml [REPEATS]
 //! ```
-//! Bakes what is missing first. Prints the median time of each method over REPEATS runs (default 20),
-//! single-threaded and with all threads (whole renders: mixing the weights, region queries in bands,
-//! shading), their ratio, and the runtime alone on one thread (mixing, whole-image point grid,
-//! whole-image splat; and the mixing's two halves on two threads), so figures are comparable within
-//! one run.
+//! Bakes what is missing first. Prints the median and fastest wall time of each method over REPEATS
+//! runs (default 20) and the CPU time of all threads per render, single-threaded and with all
+//! threads (whole renders: `query` mixes the weights and runs point grids in bands, `splat` runs
+//! RGBA splats in bands that mix as they read; both shade), their ratio, and the runtime alone on
+//! one thread (mixing, whole-image point grid, whole-image splats — planar, RGBA, RGBA without
+//! `prepare`; and the mixing's two halves on two threads), so figures are comparable within one
+//! run. On a loaded machine compare the fastest walls and the CPU times.
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
@@ -25,6 +27,17 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn thread_cpu() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
     Some(s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9)
+}
+
+/// CPU time all threads of this process have run, in seconds (Linux `schedstat` of every task);
+/// `None` elsewhere. Rayon's workers are alive for the whole run, so differences are the renders'.
+fn process_cpu() -> Option<f64> {
+    let mut total = 0.0;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let s = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        total += s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9;
+    }
+    Some(total)
 }
 
 /// Median wall-clock and (if available) mean CPU seconds of `repeats` runs of `f` (the CPU clock
@@ -76,6 +89,9 @@ fn main() -> anyhow::Result<()> {
                 method,
                 sigma_px: 0.5,
             };
+            // One render first: the pool's threads and the per-thread buffers exist before timing.
+            pool.install(|| render(archives.proxy()?, &maps, &weights, &s))?;
+            let cpu = process_cpu();
             let times = pool.install(|| -> anyhow::Result<Vec<f64>> {
                 (0..repeats)
                     .map(|_| {
@@ -85,10 +101,16 @@ fn main() -> anyhow::Result<()> {
                     })
                     .collect()
             })?;
+            let cpu = process_cpu()
+                .zip(cpu)
+                .map_or(f64::NAN, |(b, a)| (b - a) / repeats as f64);
+            let fastest = times.iter().copied().fold(f64::INFINITY, f64::min);
             let med = median(times);
             println!(
-                "{threads} thread(s)  {method:?}: median {:.2} ms over {repeats} runs",
-                med * 1e3
+                "{threads} thread(s)  {method:?}: median {:.2} ms, fastest {:.2} ms, CPU (all threads) {:.2} ms per render over {repeats} runs",
+                med * 1e3,
+                fastest * 1e3,
+                cpu * 1e3
             );
             rows.push((threads, method, med));
         }
@@ -159,6 +181,15 @@ fn main() -> anyhow::Result<()> {
         prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color))?;
         Ok(())
     })?;
+    let mut rgba = vec![0.0f32; 256 * 256 * 4];
+    let splat_rgba = time(repeats, || {
+        prep.splat_region_rgba(kernel, Region::full(res), &mut rgba)?;
+        Ok(())
+    })?;
+    let splat_mixed = time(repeats, || {
+        blend.splat_region_rgba(&weights, kernel, Region::full(res), &mut rgba)?;
+        Ok(())
+    })?;
     println!("runtime only, 1 thread, median wall / mean CPU ms:");
     println!(
         "  {:32} {:7.2} / (2 threads)",
@@ -169,6 +200,8 @@ fn main() -> anyhow::Result<()> {
         ("Blend::prepare", prepare),
         ("Prepared::point_grid 256x256", grid),
         ("Prepared::splat_region 256x256", splat),
+        ("Prepared::splat_region_rgba", splat_rgba),
+        ("Blend::splat_region_rgba", splat_mixed),
     ] {
         println!("  {name:32} {:7.2} / {:7.2}", wall * 1e3, cpu * 1e3);
     }

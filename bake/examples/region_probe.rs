@@ -1,6 +1,9 @@
 //! Runs one runtime call on a baked 2D manifest REPEATS times and nothing else, for profilers:
-//! `splat` (`Prepared::splat_region` of a whole 256² image at σ = 0.5 px), `grid`
-//! (`Prepared::point_grid`, same image) or `prepare` (`Blend::prepare`), equal weights.
+//! `splat` (`Prepared::splat_region` of a whole 256² image at σ = 0.5 px), `rgba`
+//! (`Prepared::splat_region_rgba`, same image), `mixed` (`Blend::splat_region_rgba`: the same
+//! without `prepare`, the maps mixed as the splat reads them), `grid` (`Prepared::point_grid`, same
+//! image), `prepare` (`Blend::prepare`), or a whole render, `render-splat` / `render-query`
+//! (`otbake::render::render`, on rayon's threads: `RAYON_NUM_THREADS=1` for one), equal weights.
 //!
 //! ```sh
 //! cargo run --release --example region_probe -- manifests/shapes.toml splat 100
@@ -12,7 +15,7 @@
 //! (`otbake bake`, or `blend_timing`, which bakes what is missing).
 
 use otbake::manifest::Manifest;
-use otbake::render::Archives;
+use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake_runtime::{Blend, Kernel, PointValue, Region};
 use std::time::Instant;
 
@@ -27,7 +30,7 @@ fn thread_cpu() -> f64 {
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let (Some(path), Some(which)) = (args.get(1), args.get(2)) else {
-        anyhow::bail!("usage: region_probe MANIFEST splat|grid|prepare [REPEATS]");
+        anyhow::bail!("usage: region_probe MANIFEST splat|rgba|mixed|grid|prepare|render-splat|render-query [REPEATS]");
     };
     let repeats: usize = args.get(3).map(|r| r.parse()).transpose()?.unwrap_or(100);
     let m = Manifest::load(std::path::Path::new(path))?;
@@ -42,6 +45,7 @@ fn main() -> anyhow::Result<()> {
     let mut values = vec![PointValue::default(); 256 * 256];
     let mut density = vec![0.0f32; 256 * 256];
     let mut color = vec![0.0f32; 256 * 256 * 3];
+    let mut rgba = vec![0.0f32; 256 * 256 * 4];
     let mut times = Vec::with_capacity(repeats);
     let mut cpu = 0.0;
     let mut timed = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<()> {
@@ -58,7 +62,27 @@ fn main() -> anyhow::Result<()> {
             blend.prepare(&weights, sizes.split(&mut store).expect("sized by total"))?;
             Ok(())
         })?,
-        "splat" | "grid" => {
+        "render-splat" | "render-query" => {
+            let settings = RenderSettings {
+                width: 256,
+                height: 256,
+                method: if which == "render-splat" {
+                    Method::Splat
+                } else {
+                    Method::Query
+                },
+                sigma_px: 0.5,
+            };
+            let proxy = archives.proxy()?;
+            timed(&mut || {
+                render(proxy, &maps, &weights, &settings)?;
+                Ok(())
+            })?
+        }
+        "mixed" => timed(&mut || {
+            Ok(blend.splat_region_rgba(&weights, kernel, Region::full(res), &mut rgba)?)
+        })?,
+        "splat" | "rgba" | "grid" => {
             // Prepared once: the region query alone is repeated.
             let prep = blend.prepare(&weights, sizes.split(&mut store).expect("sized by total"))?;
             let region = Region::full(res);
@@ -66,11 +90,13 @@ fn main() -> anyhow::Result<()> {
                 timed(&mut || {
                     Ok(prep.splat_region(kernel, region, &mut density, Some(&mut color))?)
                 })?
+            } else if which == "rgba" {
+                timed(&mut || Ok(prep.splat_region_rgba(kernel, region, &mut rgba)?))?
             } else {
                 timed(&mut || Ok(prep.point_grid(kernel, region, &mut values)?))?
             }
         }
-        other => anyhow::bail!("unknown call {other:?}: use splat, grid or prepare"),
+        other => anyhow::bail!("unknown call {other:?}: use splat, rgba, mixed, grid or prepare"),
     }
     times.sort_by(f64::total_cmp);
     let (min, median) = (

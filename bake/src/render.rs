@@ -1,8 +1,10 @@
 //! Rendering 2D blends to images through the runtime: per-pixel point queries or one splat, then
-//! the inputs' composite rule. Both mix the weights once (`Blend::prepare`) and evaluate horizontal
-//! bands in parallel with the runtime's region queries, which equal per-pixel queries (`query`) or
-//! the whole-image splat (`splat`, within the tolerance `otbake_runtime::SPLAT_TERM_TOLERANCE`
-//! documents of point queries) bit for bit, however the image is banded. Everything here goes
+//! the inputs' composite rule. Both evaluate horizontal bands in parallel with the runtime's region
+//! queries, which equal per-pixel queries (`query`: `Prepared::point_grid` after mixing the
+//! weights once with `Blend::prepare`) or the whole-image splat (`splat`:
+//! `Blend::splat_region_rgba`, which mixes the maps as it reads them; within the tolerance
+//! `otbake_runtime::SPLAT_TERM_TOLERANCE` documents of point queries) bit for bit, however the
+//! image is banded. Everything here goes
 //! through `otbake-runtime`, exactly as an engine would, so the images are a test of the runtime
 //! too.
 
@@ -150,24 +152,6 @@ pub fn render<'a>(
         sigma: s.sigma_px / w.max(h) as f32,
     };
     let mut img = Rgba::filled(w, h, [0.0; 4]);
-    // The blend is mixed once for these weights; both methods then read plain arrays. The buffers
-    // are kept per thread between renders (a grid renders many blends of one bake): fresh ones would
-    // cost page faults on every image.
-    let sizes = blend.prepared_sizes();
-    let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
-    store.resize(sizes.total(), 0.0);
-    let prep = blend
-        .prepare_with(
-            weights,
-            sizes
-                .split(&mut store)
-                .expect("sized by PreparedSizes::total"),
-            // Its two halves (geometry, colors) on two threads: the same bits either way.
-            |geometry, color| {
-                rayon::join(geometry, color);
-            },
-        )
-        .map_err(runtime("--weights"))?;
     let mut res = [1u32; MAX_DIM];
     res[0] = w as u32;
     res[1] = h as u32;
@@ -176,6 +160,24 @@ pub fn render<'a>(
     let band = band_rows(h);
     match s.method {
         Method::Query => {
+            // The blend is mixed once for these weights; the point grids then read plain arrays.
+            // The buffers are kept per thread between renders (a grid renders many blends of one
+            // bake): fresh ones would cost page faults on every image.
+            let sizes = blend.prepared_sizes();
+            let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
+            store.resize(sizes.total(), 0.0);
+            let prep = blend
+                .prepare_with(
+                    weights,
+                    sizes
+                        .split(&mut store)
+                        .expect("sized by PreparedSizes::total"),
+                    // Its two halves (geometry, colors) on two threads: the same bits either way.
+                    |geometry, color| {
+                        rayon::join(geometry, color);
+                    },
+                )
+                .map_err(runtime("--weights"))?;
             let mut values = VALUES.with(|b| std::mem::take(&mut *b.borrow_mut()));
             // Every value is overwritten by `point_grid`.
             values.resize(w * h, PointValue::default());
@@ -192,37 +194,33 @@ pub fn render<'a>(
                 .zip(&values)
                 .for_each(|(px, v)| px.copy_from_slice(&shade(rule, v.mass, v.color)));
             VALUES.with(|b| *b.borrow_mut() = values);
+            PREPARED.with(|b| *b.borrow_mut() = store);
         }
         Method::Splat => {
-            let (mut density, mut color) = SPLAT.with(|b| std::mem::take(&mut *b.borrow_mut()));
-            // A splat adds to its buffers: start from zeros.
-            density.clear();
-            density.resize(w * h, 0.0);
-            color.clear();
-            color.resize(w * h * 3, 0.0);
-            let has_color = prep.has_color();
-            density
-                .par_chunks_mut(w * band)
-                .zip(color.par_chunks_mut(w * band * 3))
+            // No `prepare`: each band's splat mixes the maps as its traversal reads them (the
+            // points near the band only), into RGBA cells (color, then density), and shades its
+            // rows while they are in cache.
+            let mean_mass = blend.mean_mass(weights).map_err(runtime("--weights"))?;
+            let mut rgba = SPLAT.with(|b| std::mem::take(&mut *b.borrow_mut()));
+            rgba.resize(w * h * 4, 0.0);
+            rgba.par_chunks_mut(w * band * 4)
+                .zip(img.pixels.par_chunks_mut(w * band * 4))
                 .enumerate()
-                .try_for_each(|(b, (d, c))| {
-                    let rows = (d.len() / w) as u32;
+                .try_for_each(|(b, (cells, pixels))| {
+                    // A splat adds to its cells: start from zeros.
+                    cells.fill(0.0);
+                    let rows = (cells.len() / (w * 4)) as u32;
                     let region = Region::rows(res, (b * band) as u32, rows);
-                    prep.splat_region(kernel, region, d, if has_color { Some(c) } else { None })
+                    blend.splat_region_rgba(weights, kernel, region, cells)?;
+                    for (px, c) in pixels.chunks_exact_mut(4).zip(cells.chunks_exact(4)) {
+                        px.copy_from_slice(&shade(rule, c[3] * mean_mass, [c[0], c[1], c[2]]));
+                    }
+                    Ok(())
                 })
                 .map_err(runtime("splat"))?;
-            let mean_mass = prep.mean_mass();
-            img.pixels
-                .par_chunks_mut(4)
-                .enumerate()
-                .for_each(|(i, px)| {
-                    let c = [color[3 * i], color[3 * i + 1], color[3 * i + 2]];
-                    px.copy_from_slice(&shade(rule, density[i] * mean_mass, c));
-                });
-            SPLAT.with(|b| *b.borrow_mut() = (density, color));
+            SPLAT.with(|b| *b.borrow_mut() = rgba);
         }
     }
-    PREPARED.with(|b| *b.borrow_mut() = store);
     Ok(img)
 }
 
@@ -232,10 +230,8 @@ thread_local! {
     /// Point values of the last `query` image rendered on this thread (reused, like `PREPARED`:
     /// fresh megabytes per image cost page faults on every image).
     static VALUES: std::cell::RefCell<Vec<PointValue>> = const { std::cell::RefCell::new(Vec::new()) };
-    /// Density and color buffers of the last `splat` image rendered on this thread.
-    #[allow(clippy::type_complexity)]
-    static SPLAT: std::cell::RefCell<(Vec<f32>, Vec<f32>)> =
-        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    /// RGBA cells (color, then density) of the last `splat` image rendered on this thread.
+    static SPLAT: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the

@@ -83,6 +83,15 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
         &mut density[..8],
         Some(&mut color[..24]),
     )?;
+    // RGBA cells: prepared, and mixed as the splat reads the maps.
+    let mut rgba = [0f32; 64];
+    prep.splat_region_rgba(kernel, Region::full([4, 4, 1, 1]), &mut rgba)?;
+    blend.splat_region_rgba(
+        &w,
+        kernel,
+        Region::rows([4, 4, 1, 1], 1, 2),
+        &mut rgba[..32],
+    )?;
     let q = prep.point(&[0.5, 0.5], kernel)?;
     Ok(p.density
         + r.mass
@@ -90,6 +99,7 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
         + density[5]
         + color[7]
         + grid[3].density
+        + rgba[9]
         + q.mass
         + stored)
 }

@@ -214,8 +214,16 @@ impl<'a, 'm> Blend<'a, 'm> {
         Ok(())
     }
 
-    /// Blended mean mass `Σ w_k mean_mass_k` (weights assumed checked).
-    pub(crate) fn mean_mass(&self, weights: &[f32]) -> f32 {
+    /// Blended mean mass `Σ w_k mean_mass_k` for `weights`: a point value's `mass` is its
+    /// `density` times this (as [`crate::Prepared::mean_mass`]); what turns a splat's density into
+    /// mass.
+    pub fn mean_mass(&self, weights: &[f32]) -> Result<f32, Error> {
+        self.check_weights(weights)?;
+        Ok(self.mixed_mean_mass(weights))
+    }
+
+    /// [`Blend::mean_mass`] of checked weights.
+    pub(crate) fn mixed_mean_mass(&self, weights: &[f32]) -> f32 {
         mix(weights, self.maps, |m| m.mean_mass())
     }
 
@@ -397,7 +405,7 @@ impl Source for Weighted<'_, '_, '_> {
         self.blend.has_color
     }
     fn mean_mass(&self) -> f32 {
-        self.blend.mean_mass(self.weights)
+        self.blend.mixed_mean_mass(self.weights)
     }
     #[inline]
     fn position(&self, state: &LeafGrids, i: usize) -> [f32; MAX_DIM] {

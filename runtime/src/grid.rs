@@ -161,58 +161,26 @@ impl Prepared<'_> {
         shifts: Shifts,
         mut f: impl FnMut(&[f32; D], &[f32; 3]),
     ) {
-        let clo: [f32; D] = core::array::from_fn(|k| axes.center(k, axes.first[k]));
-        let chi: [f32; D] = core::array::from_fn(|k| axes.center(k, axes.last[k]));
-        for shift in shifts {
-            let m: [f32; D] = core::array::from_fn(|k| shift[k]);
-            let mut stack = Stack::new(Node::root(self.n));
-            while let Some(node) = stack.pop() {
-                if node.count == 0 {
-                    continue;
-                }
-                let base = node.index as usize * 2 * D;
-                let Some(b) = self.node_boxes.get(base..base + 2 * D) else {
-                    continue;
+        walk_nodes(self, axes, radius, radius2, shifts, |node, m| {
+            let range = node.range();
+            let Some(points) = self.positions.get(range.start * D..range.end * D) else {
+                return;
+            };
+            let colors = if self.has_color {
+                self.colors.get(range.start * 3..range.end * 3)
+            } else {
+                None
+            };
+            for (j, y) in points.chunks_exact(D).enumerate() {
+                let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
+                    Some(&[r, g, b]) => [r, g, b],
+                    _ => [0.0; 3],
                 };
-                // Distance from the moved box to the box of cell centers, summed like
-                // `box_distance2`.
-                let mut d2 = 0.0f32;
-                let mut inside = true;
-                for k in 0..D {
-                    let (lo, hi) = (b[k] - m[k], b[D + k] - m[k]);
-                    let gap = (lo - chi[k]).max(clo[k] - hi).max(0.0);
-                    d2 += gap * gap;
-                    inside &= lo >= clo[k] - radius && hi <= chi[k] + radius;
-                }
-                if d2 > radius2 {
-                    continue;
-                }
-                if node.level < self.depth && !inside {
-                    let (l, r) = node.children();
-                    stack.push(r);
-                    stack.push(l);
-                    continue;
-                }
-                let range = node.range();
-                let Some(points) = self.positions.get(range.start * D..range.end * D) else {
-                    continue;
-                };
-                let colors = if self.has_color {
-                    self.colors.get(range.start * 3..range.end * 3)
-                } else {
-                    None
-                };
-                for (j, y) in points.chunks_exact(D).enumerate() {
-                    let c = match colors.and_then(|c| c.get(j * 3..j * 3 + 3)) {
-                        Some(&[r, g, b]) => [r, g, b],
-                        _ => [0.0; 3],
-                    };
-                    // The point in the image being visited, as `periodic::Shifted` moves it.
-                    let y: [f32; D] = core::array::from_fn(|k| y[k] - m[k]);
-                    f(&y, &c);
-                }
+                // The point in the image being visited, as `periodic::Shifted` moves it.
+                let y: [f32; D] = core::array::from_fn(|k| y[k] - m[k]);
+                f(&y, &c);
             }
-        }
+        });
     }
 
     /// Kernel sums (`density`: Σ w, `color`: Σ w·c, unscaled) of every cell of the region.
@@ -230,6 +198,90 @@ impl Prepared<'_> {
             grid_point(axes, y, c, kp, radius, has_color, &mut batch, out);
         });
         batch.flush(kp, has_color, out);
+    }
+}
+
+/// The tree of a blend as a region walk sees it: blended node boxes, stored ([`Prepared`]) or
+/// mixed on the fly (`rgba::Mixed`).
+pub(crate) trait Tree {
+    fn n(&self) -> u32;
+    fn depth(&self) -> u32;
+    /// The blended box (`lo`, `hi`) of `node`, which contains its blended points; a box of
+    /// infinities to visit the node without a test; `None` to skip it (a buffer too short, which a
+    /// validated blend never has).
+    fn node_box<const D: usize>(&self, node: Node) -> Option<([f32; D], [f32; D])>;
+    /// Whether a subtree may be handed over whole (else the walk hands over leaves only).
+    fn whole_subtrees(&self) -> bool;
+}
+
+impl Tree for Prepared<'_> {
+    fn n(&self) -> u32 {
+        self.n
+    }
+    fn depth(&self) -> u32 {
+        self.depth
+    }
+    #[inline(always)]
+    fn node_box<const D: usize>(&self, node: Node) -> Option<([f32; D], [f32; D])> {
+        let base = node.index as usize * 2 * D;
+        let b = self.node_boxes.get(base..base + 2 * D)?;
+        Some((
+            core::array::from_fn(|k| b[k]),
+            core::array::from_fn(|k| b[D + k]),
+        ))
+    }
+    fn whole_subtrees(&self) -> bool {
+        true
+    }
+}
+
+/// Calls `f(node, m)` for every node whose points a region walk hands over, in index order, once
+/// per image of the blend in `shifts` (in their order; `m` the image's shift): nodes whose box,
+/// moved by `−m`, is within the cutoff of the region's box of centers — a leaf, or (if the tree
+/// allows) a whole subtree whose moved box lies inside the box of centers grown by the radius.
+/// The points of a handed-over node are the ones [`Prepared::walk`] describes.
+pub(crate) fn walk_nodes<const D: usize>(
+    tree: &impl Tree,
+    axes: &Axes<D>,
+    radius: f32,
+    radius2: f32,
+    shifts: Shifts,
+    mut f: impl FnMut(Node, &[f32; D]),
+) {
+    let clo: [f32; D] = core::array::from_fn(|k| axes.center(k, axes.first[k]));
+    let chi: [f32; D] = core::array::from_fn(|k| axes.center(k, axes.last[k]));
+    let (depth, whole) = (tree.depth(), tree.whole_subtrees());
+    for shift in shifts {
+        let m: [f32; D] = core::array::from_fn(|k| shift[k]);
+        let mut stack = Stack::new(Node::root(tree.n()));
+        while let Some(node) = stack.pop() {
+            if node.count == 0 {
+                continue;
+            }
+            let Some((blo, bhi)) = tree.node_box::<D>(node) else {
+                continue;
+            };
+            // Distance from the moved box to the box of cell centers, summed like
+            // `box_distance2`.
+            let mut d2 = 0.0f32;
+            let mut inside = whole;
+            for k in 0..D {
+                let (lo, hi) = (blo[k] - m[k], bhi[k] - m[k]);
+                let gap = (lo - chi[k]).max(clo[k] - hi).max(0.0);
+                d2 += gap * gap;
+                inside &= lo >= clo[k] - radius && hi <= chi[k] + radius;
+            }
+            if d2 > radius2 {
+                continue;
+            }
+            if node.level < depth && !inside {
+                let (l, r) = node.children();
+                stack.push(r);
+                stack.push(l);
+                continue;
+            }
+            f(node, &m);
+        }
     }
 }
 
@@ -400,10 +452,15 @@ impl Batch {
     }
 
     /// Adds every waiting term to its cell (the accumulation of `point::point`) and empties the batch.
+    /// (The 2D blocks call it before every point they take: the test of an empty batch is inlined.)
+    #[inline(always)]
     pub(crate) fn flush(&mut self, kp: kernel::Prepared, has_color: bool, out: &mut [PointValue]) {
-        if self.len == 0 {
-            return;
+        if self.len != 0 {
+            self.flush_terms(kp, has_color, out);
         }
+    }
+
+    fn flush_terms(&mut self, kp: kernel::Prepared, has_color: bool, out: &mut [PointValue]) {
         let mut w = [0.0f32; BATCH];
         for (w, &r2) in w.iter_mut().zip(&self.r2) {
             *w = kp.weight(r2);

@@ -83,6 +83,7 @@ mod plane;
 mod point;
 mod prepared;
 mod range;
+mod rgba;
 mod splat;
 mod splat_region;
 mod stack;

@@ -129,7 +129,7 @@ impl Chunk {
         // Every factor of the chunk in one vector loop.
         let mut g = [[0.0f32; 2 * B]; CHUNK];
         for (g, b) in g.iter_mut().zip(&self.block).take(n) {
-            *g = kp.weights(&b.sq);
+            *g = kp.factors(&b.sq);
         }
         let r2max = kp.radius2;
         for ((b, g), cm) in self.block[..n].iter().zip(&g).zip(&self.color) {
@@ -262,6 +262,10 @@ impl Prepared<'_> {
                 Ok(None) => {}
                 Err(()) => {
                     chunk.splat(kp, scale, stride, density, color.as_deref_mut());
+                    let mut out = crate::splat::Planar {
+                        density: &mut *density,
+                        color: color.as_deref_mut(),
+                    };
                     crate::splat_region::splat_point(
                         axes,
                         &[x, y],
@@ -269,8 +273,7 @@ impl Prepared<'_> {
                         kp,
                         radius,
                         scale,
-                        density,
-                        color.as_deref_mut(),
+                        &mut out,
                     );
                 }
             }

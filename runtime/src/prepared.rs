@@ -93,7 +93,7 @@ pub struct Prepared<'b> {
 /// one pass; entries the stream does not reach (none, for validated archives) become 0, as `mix`
 /// would leave them.
 #[inline(always)]
-fn mix_stream(out: &mut [f32], w: f32, first: bool, values: impl Iterator<Item = f32>) {
+pub(crate) fn mix_stream(out: &mut [f32], w: f32, first: bool, values: impl Iterator<Item = f32>) {
     if first {
         let mut len = 0;
         for (o, v) in out.iter_mut().zip(values) {
@@ -304,7 +304,7 @@ impl<'a> Blend<'a, '_> {
             depth: self.depth,
             has_color: self.has_color,
             missing_node_colors: self.missing_node_colors,
-            mean_mass: self.mean_mass(weights),
+            mean_mass: self.mixed_mean_mass(weights),
             wrap: self.wrap,
             positions,
             colors,

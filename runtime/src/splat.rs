@@ -14,11 +14,14 @@ use crate::MAX_DIM;
 /// How far a splat may be from point queries: the relative bound on the difference between one
 /// splat term and the corresponding point-query term.
 ///
-/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`) counts a point at
+/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`, the RGBA region
+/// splats `Prepared::splat_region_rgba` and `Blend::splat_region_rgba`) counts a point at
 /// exactly the cells a point query at the cell's center counts it (squared distance
 /// `r² = Σ_k t_k²`, summed in axis order, `<=` the squared cutoff radius), but weighs it by a
 /// product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
-/// `g_k = exp(−t_k² / 2σ²)` and `scale = norm / n` (a color channel: `(g_0 · c · mean mass) · P`),
+/// `g_k = exp(−t_k² / 2σ²)` (computed by the splat's own exponential, `kernel::splat_exp`, a
+/// shorter one than the point query's) and `scale = norm / n` (a color channel:
+/// `(g_0 · c · mean mass) · P`),
 /// instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact arithmetic the two
 /// are equal (the Gaussian is separable); the product lets a splat compute `d` small tables of
 /// factors per point instead of an exponential per (point, cell) pair, which is what makes
@@ -27,9 +30,9 @@ use crate::MAX_DIM;
 /// In floats they differ by rounding. With `u = 2⁻²⁴` and exponents `|x| <= 4.5` inside the cutoff:
 /// the point query's exponent carries at most `4.5·d·u` of rounding (the `d − 1` additions of `r²`
 /// and the product by `−1/2σ²`), the splat's `d` exponents together `4.5·u` (each is rounded once
-/// and they sum to the point query's), every `exp` 3e-7 relative (tested in `kernel.rs`: one for
-/// the query, `d` for the splat), and the splat's `d` products `u` each: at most 3.1e-6 per term in
-/// 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
+/// and they sum to the point query's), every exponential 3e-7 relative (tested in `kernel.rs`:
+/// one `exp` for the query, `d` of `splat_exp`, within 2.5e-7, for the splat), and the splat's `d`
+/// products `u` each: at most 3.1e-6 per term in 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
 /// Summing `m` terms in `f32`, in the same order, adds at most `m·u` relative error to each of the
 /// two sums, so for a cell that `m` points reach
 ///
@@ -167,17 +170,11 @@ fn splat_dim<const D: usize>(
                 }
             }
             if !empty {
-                splat_cells(
-                    &axes,
-                    &y,
-                    &cm,
-                    &lo,
-                    &hi,
-                    kp,
-                    scale,
-                    density,
-                    color.as_deref_mut(),
-                );
+                let mut out = Planar {
+                    density: &mut *density,
+                    color: color.as_deref_mut(),
+                };
+                splat_cells(&axes, &y, &cm, &lo, &hi, kp, scale, &mut out);
             }
         }
     }
@@ -189,12 +186,121 @@ pub(crate) fn premultiplied(c: [f32; 3], mean_mass: f32) -> [f32; 3] {
     c.map(|c| c * mean_mass)
 }
 
+/// The cells a splat adds its terms to, in one of the two layouts a caller can give: planar (one
+/// density per cell, optionally three color values per cell) or RGBA (four values per cell: the
+/// three color channels, then the density where alpha goes). Either way a cell gets the same terms in the same
+/// order, so the layouts hold the same bits.
+pub(crate) trait Cells {
+    /// Adds one point's term to region cell `cell`: `g0 · p` to the density and `(g0 · cm[k]) · p`
+    /// to color channel `k` (see [`SPLAT_TERM_TOLERANCE`]).
+    fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32);
+
+    /// [`Cells::add`] at the `B` cells from `row`, where `keep` holds.
+    fn add_row<const B: usize>(
+        &mut self,
+        row: usize,
+        g0: &[f32; B],
+        keep: &[bool; B],
+        cm: &[f32; 3],
+        p: f32,
+    );
+}
+
+/// Planar buffers: one density per cell, and three color values per cell if given.
+pub(crate) struct Planar<'b> {
+    pub density: &'b mut [f32],
+    pub color: Option<&'b mut [f32]>,
+}
+
+impl Cells for Planar<'_> {
+    #[inline(always)]
+    fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
+        if let Some(v) = self.density.get_mut(cell) {
+            *v += g0 * p;
+        }
+        if let Some(px) = self
+            .color
+            .as_deref_mut()
+            .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
+        {
+            for (v, c) in px.iter_mut().zip(cm) {
+                *v += (g0 * c) * p;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn add_row<const B: usize>(
+        &mut self,
+        row: usize,
+        g0: &[f32; B],
+        keep: &[bool; B],
+        cm: &[f32; 3],
+        p: f32,
+    ) {
+        if let Some(d) = self.density.get_mut(row..row + B) {
+            for ((d, &g0), &keep) in d.iter_mut().zip(g0).zip(keep) {
+                if keep {
+                    *d += g0 * p;
+                }
+            }
+        }
+        if let Some(px) = self
+            .color
+            .as_deref_mut()
+            .and_then(|c| c.get_mut(row * 3..(row + B) * 3))
+        {
+            for ((px, &g0), &keep) in px.chunks_exact_mut(3).zip(g0).zip(keep) {
+                if keep {
+                    for (v, c) in px.iter_mut().zip(cm) {
+                        *v += (g0 * c) * p;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// RGBA cells: three color channels, then the density, per cell (a blend without color adds its
+/// zero color terms, as to a planar color buffer).
+pub(crate) struct Rgba<'b> {
+    pub cells: &'b mut [f32],
+}
+
+impl Cells for Rgba<'_> {
+    #[inline(always)]
+    fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
+        if let Some(px) = self.cells.get_mut(cell * 4..cell * 4 + 4) {
+            for (v, c) in px.iter_mut().zip(cm) {
+                *v += (g0 * c) * p;
+            }
+            px[3] += g0 * p;
+        }
+    }
+
+    #[inline(always)]
+    fn add_row<const B: usize>(
+        &mut self,
+        row: usize,
+        g0: &[f32; B],
+        keep: &[bool; B],
+        cm: &[f32; 3],
+        p: f32,
+    ) {
+        for i in 0..B {
+            if keep[i] {
+                self.add(row + i, g0[i], cm, p);
+            }
+        }
+    }
+}
+
 /// Candidate cells per axis whose squared distances and factors [`splat_cells`] tabulates per
 /// point (kernels wider than about 30 cells compute them per cell: the same values).
 const TABLE: usize = 64;
 
 /// Adds a point's splat terms to every cell of the candidate box `lo..=hi` (global indices of the
-/// region `axes`, whose buffers `density` and `color` are) within the cutoff, one cell at a time,
+/// region `axes`, whose cells `out` holds) within the cutoff, one cell at a time,
 /// from per-axis tables of squared distances and factors (an exponential per candidate cell of
 /// each axis, not per cell of the box). The reference, and the path of kernels too wide for the
 /// region splat's blocks.
@@ -207,8 +313,7 @@ pub(crate) fn splat_cells<const D: usize>(
     hi: &[usize; D],
     kp: Prepared,
     scale: f32,
-    density: &mut [f32],
-    mut color: Option<&mut [f32]>,
+    out: &mut impl Cells,
 ) {
     let mut sq = [[0.0f32; TABLE]; D];
     let mut g = [[0.0f32; TABLE]; D];
@@ -222,7 +327,7 @@ pub(crate) fn splat_cells<const D: usize>(
                 *s = t * t;
             }
             for (g, &s) in g[k].iter_mut().zip(&sq[k]).take(len) {
-                *g = kp.weight(s);
+                *g = kp.factor(s);
             }
         }
     }
@@ -233,7 +338,7 @@ pub(crate) fn splat_cells<const D: usize>(
             (true, Some(&s), Some(&g)) => (s, g),
             _ => {
                 let t = y[k] - axes.center(k, i);
-                (t * t, kp.weight(t * t))
+                (t * t, kp.factor(t * t))
             }
         }
     };
@@ -258,18 +363,7 @@ pub(crate) fn splat_cells<const D: usize>(
                 r2 += t;
             }
             if r2 <= kp.radius2 {
-                let cell = row + (i - axes.first[0]);
-                if let Some(v) = density.get_mut(cell) {
-                    *v += g0 * p;
-                }
-                if let Some(px) = color
-                    .as_deref_mut()
-                    .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
-                {
-                    for (v, c) in px.iter_mut().zip(cm) {
-                        *v += (g0 * c) * p;
-                    }
-                }
+                out.add(row + (i - axes.first[0]), g0, cm, p);
             }
         }
         let mut k = 1;

@@ -21,7 +21,7 @@ use crate::grid::Region;
 use crate::kernel::{self, Kernel};
 use crate::periodic::Shifts;
 use crate::prepared::Prepared;
-use crate::splat::{premultiplied, splat_cells};
+use crate::splat::{premultiplied, splat_cells, Cells, Planar};
 
 impl Prepared<'_> {
     /// Adds the splat of the blend to the cells of `region` only: `density` (and `color`, three per
@@ -58,37 +58,37 @@ impl Prepared<'_> {
             return Ok(());
         }
         let radius = kernel.sigma * kernel::TRUNCATION;
-        match self.dim {
-            1 => self.splat_points(kp, radius, &region.axes::<1>(), shifts, density, color),
-            2 => {
-                let axes = region.axes::<2>();
-                if crate::plane::fits(&axes, radius) {
-                    self.splat_plane(kp, radius, &axes, shifts, density, color)
-                } else {
-                    self.splat_points(kp, radius, &axes, shifts, density, color)
-                }
+        if self.dim == 2 {
+            let axes = region.axes::<2>();
+            if crate::plane::fits(&axes, radius) {
+                self.splat_plane(kp, radius, &axes, shifts, density, color);
+                return Ok(());
             }
-            3 => self.splat_points(kp, radius, &region.axes::<3>(), shifts, density, color),
-            _ => self.splat_points(kp, radius, &region.axes::<4>(), shifts, density, color),
+        }
+        let mut out = Planar { density, color };
+        match self.dim {
+            1 => self.splat_points(kp, radius, &region.axes::<1>(), shifts, &mut out),
+            2 => self.splat_points(kp, radius, &region.axes::<2>(), shifts, &mut out),
+            3 => self.splat_points(kp, radius, &region.axes::<3>(), shifts, &mut out),
+            _ => self.splat_points(kp, radius, &region.axes::<4>(), shifts, &mut out),
         }
         Ok(())
     }
 
-    fn splat_points<const D: usize>(
+    /// Every point the walk hands over, one at a time, through [`splat_point`].
+    pub(crate) fn splat_points<const D: usize>(
         &self,
         kp: kernel::Prepared,
         radius: f32,
         axes: &Axes<D>,
         shifts: Shifts,
-        density: &mut [f32],
-        mut color: Option<&mut [f32]>,
+        out: &mut impl Cells,
     ) {
         let scale = kp.norm / self.n as f32;
         let mean_mass = self.mean_mass;
         self.walk(axes, radius, kp.radius2, shifts, |y, &c| {
             let cm = premultiplied(c, mean_mass);
-            let color = color.as_deref_mut();
-            splat_point(axes, y, &cm, kp, radius, scale, density, color);
+            splat_point(axes, y, &cm, kp, radius, scale, out);
         });
     }
 }
@@ -105,8 +105,7 @@ pub(crate) fn splat_point<const D: usize>(
     kp: kernel::Prepared,
     radius: f32,
     scale: f32,
-    density: &mut [f32],
-    color: Option<&mut [f32]>,
+    out: &mut impl Cells,
 ) {
     let mut spans = [Span::EMPTY; D];
     let mut lo = [0usize; D];
@@ -127,11 +126,11 @@ pub(crate) fn splat_point<const D: usize>(
     }
     let width = axes.size(0);
     if !wide && spans[0].len <= 4 && width >= 4 {
-        splat_block::<D, 4>(axes, y, cm, &spans, kp, scale, density, color);
+        splat_block::<D, 4>(axes, y, cm, &spans, kp, scale, out);
     } else if !wide && width >= LANES {
-        splat_block::<D, LANES>(axes, y, cm, &spans, kp, scale, density, color);
+        splat_block::<D, LANES>(axes, y, cm, &spans, kp, scale, out);
     } else {
-        splat_cells(axes, y, cm, &lo, &hi, kp, scale, density, color);
+        splat_cells(axes, y, cm, &lo, &hi, kp, scale, out);
     }
 }
 
@@ -147,8 +146,7 @@ fn splat_block<const D: usize, const B: usize>(
     spans: &[Span; D],
     kp: kernel::Prepared,
     scale: f32,
-    density: &mut [f32],
-    mut color: Option<&mut [f32]>,
+    out: &mut impl Cells,
 ) {
     let s = spans[0].first().min(axes.last[0] + 1 - B);
     let cx = axes.centers::<B>(0, s);
@@ -157,11 +155,11 @@ fn splat_block<const D: usize, const B: usize>(
         let t = y[0] - cx[i];
         s0[i] = t * t;
     }
-    let g0 = kp.weights(&s0);
+    let g0 = kp.factors(&s0);
     // Factors of the other axes, over all their lanes (one vector loop each).
     let mut g = [[0.0f32; LANES]; D];
     for k in 1..D {
-        g[k] = kp.weights(&spans[k].sq);
+        g[k] = kp.factors(&spans[k].sq);
     }
     let mut idx = [0usize; D];
     loop {
@@ -184,25 +182,7 @@ fn splat_block<const D: usize, const B: usize>(
         for i in 0..B {
             keep[i] = r2[i] <= kp.radius2;
         }
-        if let Some(d) = density.get_mut(row..row + B) {
-            for ((d, &g0), &keep) in d.iter_mut().zip(&g0).zip(&keep) {
-                if keep {
-                    *d += g0 * p;
-                }
-            }
-        }
-        if let Some(px) = color
-            .as_deref_mut()
-            .and_then(|c| c.get_mut(row * 3..(row + B) * 3))
-        {
-            for ((px, &g0), &keep) in px.chunks_exact_mut(3).zip(&g0).zip(&keep) {
-                if keep {
-                    for (v, c) in px.iter_mut().zip(cm) {
-                        *v += (g0 * c) * p;
-                    }
-                }
-            }
-        }
+        out.add_row(row, &g0, &keep, cm, p);
         if !next_row(&mut idx, spans) {
             return;
         }

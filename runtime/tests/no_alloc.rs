@@ -46,6 +46,7 @@ fn queries_do_not_allocate() {
     let mut density = vec![0.0f32; 32 * 32];
     let mut color = vec![0.0f32; 32 * 32 * 3];
     let mut grid = vec![PointValue::default(); 32 * 8];
+    let mut rgba = vec![0.0f32; 32 * 32 * 4];
     let mut buffers: [Vec<f32>; 4] = Default::default();
     {
         let proxy = Proxy::open(&f.proxy).unwrap();
@@ -136,6 +137,17 @@ fn queries_do_not_allocate() {
     )
     .unwrap();
     acc += grid.iter().map(|v| v.density).sum::<f32>();
+    // RGBA cells, prepared and mixed on the fly (the 3×3 blocks at σ = ½ cell, and the general
+    // path).
+    for sigma in [0.5 / 32.0, 0.02] {
+        let k = Kernel { sigma };
+        prep.splat_region_rgba(k, Region::full(res), &mut rgba)
+            .unwrap();
+        blend
+            .splat_region_rgba(&w, k, Region::rows(res, 4, 8), &mut rgba[..32 * 8 * 4])
+            .unwrap();
+    }
+    acc += rgba.iter().sum::<f32>();
 
     let after = ALLOCATIONS.load(Ordering::SeqCst);
     COUNTING.with(|c| c.set(false));

@@ -347,6 +347,18 @@ proptest! {
             r.size[last] = size;
             let (a, b) = (start as usize * stride, (start + size) as usize * stride);
             prep.splat_region(kernel, r, &mut d2[a..b], Some(&mut c2[3 * a..3 * b])).unwrap();
+            // The same band into RGBA cells, prepared and mixed on the fly.
+            let mut pr = vec![0.0f32; (b - a) * 4];
+            let mut br = vec![0.0f32; (b - a) * 4];
+            prep.splat_region_rgba(kernel, r, &mut pr).unwrap();
+            blend.splat_region_rgba(&w, kernel, r, &mut br).unwrap();
+            for cell in 0..b - a {
+                let want = [c0[3 * (a + cell)], c0[3 * (a + cell) + 1], c0[3 * (a + cell) + 2], d0[a + cell]];
+                for ch in 0..4 {
+                    prop_assert_eq!(pr[cell * 4 + ch].to_bits(), want[ch].to_bits(), "band {} cell {}", start, cell);
+                    prop_assert_eq!(br[cell * 4 + ch].to_bits(), want[ch].to_bits(), "band {} cell {}", start, cell);
+                }
+            }
             start += size;
         }
         prop_assert_eq!(d0.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), d2.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
@@ -359,9 +371,10 @@ proptest! {
 
     /// The image paths (2D, narrow kernels: σ from 0.15 to 0.8 cell, regions at least four cells
     /// wide take the fixed 4×4 blocks of `plane.rs`, the others and the widest spans the general
-    /// paths) on the torus: point grids of the whole image, of bands and of tiles touching a border
-    /// equal per-cell point queries, and region splats the same cells of the full splat, bit for
-    /// bit. Half the points crowd the borders, so a region path that missed an image of the blend
+    /// paths; RGBA splats up to σ = ½ cell the 3×3 blocks of `rgba/block3.rs`) on the torus: point
+    /// grids of the whole image, of bands and of tiles touching a border equal per-cell point
+    /// queries, and region splats (planar, RGBA, RGBA mixed on the fly) the same cells of the full
+    /// splat, bit for bit. Half the points crowd the borders, so a region path that missed an image of the blend
     /// (a shift) would lose the terms from across the seam.
     #[test]
     fn narrow_kernel_regions_wrap_like_their_references(seed in 0u64..1000, n in 1usize..400,
@@ -399,6 +412,10 @@ proptest! {
             let mut d = vec![0.0f32; rcells];
             let mut c = vec![0.0f32; rcells * 3];
             prep.splat_region(kernel, region, &mut d, Some(&mut c)).unwrap();
+            let mut pr = vec![0.0f32; rcells * 4];
+            let mut br = vec![0.0f32; rcells * 4];
+            prep.splat_region_rgba(kernel, region, &mut pr).unwrap();
+            blend.splat_region_rgba(&w, kernel, region, &mut br).unwrap();
             for (cell, v) in out.iter().enumerate() {
                 let (i, j) = (cell % region.size[0] as usize, cell / region.size[0] as usize);
                 let (gi, gj) = (region.start[0] as usize + i, region.start[1] as usize + j);
@@ -412,6 +429,11 @@ proptest! {
                 prop_assert_eq!(d[cell].to_bits(), full_d[g].to_bits(), "{:?} cell {}", region, cell);
                 for ch in 0..3 {
                     prop_assert_eq!(c[cell * 3 + ch].to_bits(), full_c[g * 3 + ch].to_bits());
+                }
+                let want = [full_c[3 * g], full_c[3 * g + 1], full_c[3 * g + 2], full_d[g]];
+                for ch in 0..4 {
+                    prop_assert_eq!(pr[cell * 4 + ch].to_bits(), want[ch].to_bits(), "{:?} cell {} (rgba)", region, cell);
+                    prop_assert_eq!(br[cell * 4 + ch].to_bits(), want[ch].to_bits(), "{:?} cell {} (rgba, mixed)", region, cell);
                 }
             }
         }

@@ -332,6 +332,49 @@ fn bad_buffers_and_regions_are_errors() {
             found: 3
         })
     ));
+    // RGBA cells: four per cell, the region inside its grid, a good kernel and (mixed on the fly)
+    // good weights; the blended mean mass is the prepared one.
+    let mut rgba = vec![0.0; 47];
+    let w = [0.5, 0.5];
+    for r in [
+        prep.splat_region_rgba(k, Region::rows(res, 1, 3), &mut rgba),
+        blend.splat_region_rgba(&w, k, Region::rows(res, 1, 3), &mut rgba),
+    ] {
+        assert!(matches!(
+            r,
+            Err(Error::BufferSize {
+                expected: 48,
+                found: 47
+            })
+        ));
+    }
+    let mut rgba = vec![0.0; 48];
+    assert!(prep
+        .splat_region_rgba(k, Region::rows(res, 1, 3), &mut rgba)
+        .is_ok());
+    assert!(blend
+        .splat_region_rgba(&w, k, Region::rows(res, 1, 3), &mut rgba)
+        .is_ok());
+    assert!(matches!(
+        blend.splat_region_rgba(&w, k, Region::rows(res, 2, 3), &mut rgba),
+        Err(Error::BadRegion { axis: 1 })
+    ));
+    assert!(matches!(
+        prep.splat_region_rgba(Kernel { sigma: -1.0 }, Region::rows(res, 1, 3), &mut rgba),
+        Err(Error::BadSigma)
+    ));
+    assert!(matches!(
+        blend.splat_region_rgba(&[0.5, 0.6], k, Region::rows(res, 1, 3), &mut rgba),
+        Err(Error::WeightSum { .. })
+    ));
+    assert!(blend
+        .splat_region_rgba(&w, k, Region::rows(res, 4, 0), &mut [])
+        .is_ok());
+    assert_eq!(blend.mean_mass(&w).unwrap(), prep.mean_mass());
+    assert!(matches!(
+        blend.mean_mass(&[0.5]),
+        Err(Error::WeightCount { .. })
+    ));
 }
 
 /// `prepare_with` gives `prepare`'s bits whether `join` runs the halves on two threads, in

@@ -53,6 +53,61 @@ fn global(dim: usize, region: &Region, cell: usize) -> (usize, Vec<f32>) {
     (g, c)
 }
 
+/// Checks RGBA region cells (`rgba`, four per cell of `region`: color, then density) against the
+/// planar buffers of the whole grid (`density`, `color`): the same bits, channel by channel.
+fn assert_rgba(
+    dim: usize,
+    region: &Region,
+    rgba: &[f32],
+    density: &[f32],
+    color: &[f32],
+) -> Result<(), TestCaseError> {
+    for cell in 0..region.cells(dim).unwrap() {
+        let (g, _) = global(dim, region, cell);
+        prop_assert_eq!(
+            rgba[cell * 4 + 3].to_bits(),
+            density[g].to_bits(),
+            "{:?} cell {} density",
+            region,
+            cell
+        );
+        for a in 0..3 {
+            prop_assert_eq!(
+                rgba[cell * 4 + a].to_bits(),
+                color[g * 3 + a].to_bits(),
+                "{:?} cell {} channel {}",
+                region,
+                cell,
+                a
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Start values of a buffer a splat adds to: arbitrary, negative zeros among them.
+fn start_value(i: usize) -> f32 {
+    match i % 5 {
+        0 => -0.0,
+        1 => 0.0,
+        2 => 1.5,
+        3 => -2.25,
+        _ => i as f32 * 1e-3,
+    }
+}
+
+/// RGBA cells of `region` holding the start values the whole grid's planar buffers hold there.
+fn rgba_start(dim: usize, region: &Region, density: &[f32], color: &[f32]) -> Vec<f32> {
+    let cells = region.cells(dim).unwrap();
+    let mut rgba = vec![0.0f32; cells * 4];
+    for cell in 0..cells {
+        let (g, _) = global(dim, region, cell);
+        rgba[cell * 4..cell * 4 + 3].copy_from_slice(&color[g * 3..g * 3 + 3]);
+        rgba[cell * 4 + 3] = density[g];
+    }
+    rgba
+}
+
 /// A 2D grid of up to `max` cells per axis and a random region of it: whole grid, a band, a tile,
 /// or a sliver narrower than a block.
 fn region2(rng: &mut Rng, max: u32) -> Region {
@@ -177,6 +232,56 @@ proptest! {
                 prop_assert_eq!(rc[cell * 3 + a].to_bits(), color[g * 3 + a].to_bits(), "{:?} cell {} channel {}", region, cell, a);
             }
         }
+    }
+
+    /// RGBA region splats, prepared or mixed on the fly, in every dimension and storage, with
+    /// kernels on both sides of the 3×3 blocks' limit (σ = ½ cell) and wide ones: the bits of the
+    /// full (planar) splat, over any start values.
+    #[test]
+    fn rgba_region_splats_equal_the_full_splat(seed in 0u64..10_000, n in 1usize..400,
+                                               dim in 1usize..=3, leaf in 1u32..9, k in 1usize..4,
+                                               sigma_cells in 0.1f32..1.2, wide in 0u32..4,
+                                               st in 0..STORAGES.len() + 1) {
+        let storage = STORAGES.get(st).copied().unwrap_or(otbake_runtime::Storage {
+            colors: None,
+            node_colors: false,
+            ..otbake_runtime::Storage::FULL
+        });
+        let f = fixture_with(seed, n, dim, leaf, k, [1; 32], storage);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0x76ba);
+        let w = weights(&mut rng, k);
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &w, &mut store);
+        let region = if dim == 2 {
+            region2(&mut rng, 80)
+        } else {
+            let mut res = [1u32; MAX_DIM];
+            for r in res.iter_mut().take(dim) {
+                *r = 1 + (rng.next() % [0u64, 300, 0, 14][dim]) as u32;
+            }
+            let mut r = Region::full(res);
+            for a in 0..dim {
+                r.start[a] = (rng.next() % res[a] as u64) as u32;
+                r.size[a] = 1 + (rng.next() % (res[a] - r.start[a]) as u64) as u32;
+            }
+            r
+        };
+        let finest = *region.res[..dim].iter().max().unwrap();
+        // One case in four a wide kernel (general paths, 3–6 cells).
+        let sigma_cells = if wide == 0 { sigma_cells * 5.0 } else { sigma_cells };
+        let kernel = Kernel { sigma: sigma_cells / finest as f32 };
+        let full: usize = region.res[..dim].iter().map(|&r| r as usize).product();
+        let mut density: Vec<f32> = (0..full).map(start_value).collect();
+        let mut color: Vec<f32> = (0..full * 3).map(|i| start_value(i + 1)).collect();
+        let mut a = rgba_start(dim, &region, &density, &color);
+        let mut b = a.clone();
+        blend.splat(&w, kernel, SplatTarget { res: region.res, density: &mut density, color: Some(&mut color) }).unwrap();
+        prep.splat_region_rgba(kernel, region, &mut a).unwrap();
+        assert_rgba(dim, &region, &a, &density, &color)?;
+        blend.splat_region_rgba(&w, kernel, region, &mut b).unwrap();
+        assert_rgba(dim, &region, &b, &density, &color)?;
     }
 
     /// The tolerance of `otbake_runtime::splat`'s documentation: a cell reached by `m` points
@@ -309,6 +414,33 @@ fn image_sized_regions_match_their_references() {
         rc.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
         color.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
     );
+    // RGBA cells in bands of 32 rows, prepared and mixed on the fly.
+    for mixed in [false, true] {
+        let mut rgba = vec![0.0f32; 256 * 256 * 4];
+        for (b, band) in rgba.chunks_mut(256 * 32 * 4).enumerate() {
+            let region = Region::rows(res, b as u32 * 32, 32);
+            if mixed {
+                blend.splat_region_rgba(&w, kernel, region, band).unwrap();
+            } else {
+                prep.splat_region_rgba(kernel, region, band).unwrap();
+            }
+        }
+        for cell in 0..256 * 256 {
+            let want = [
+                color[3 * cell],
+                color[3 * cell + 1],
+                color[3 * cell + 2],
+                density[cell],
+            ];
+            for a in 0..4 {
+                assert_eq!(
+                    rgba[cell * 4 + a].to_bits(),
+                    want[a].to_bits(),
+                    "cell {cell} (mixed: {mixed})"
+                );
+            }
+        }
+    }
 }
 
 /// A one-map blend (weight 1, so the blended points are `pos` exactly) with colors.
@@ -432,6 +564,18 @@ fn points_on_cutoff_ties_keep_their_bits() {
         let mut c1 = vec![0.0f32; cells * 3];
         prep.splat_region(kernel, full, &mut d1, Some(&mut c1))
             .unwrap();
+        // RGBA, prepared and mixed on the fly, whole and in bands of 5 rows (blocks moved inside
+        // a band at its borders).
+        let mut r1 = vec![0.0f32; cells * 4];
+        prep.splat_region_rgba(kernel, full, &mut r1).unwrap();
+        let mut r2 = vec![0.0f32; cells * 4];
+        for (b, band) in r2.chunks_mut(res as usize * 5 * 4).enumerate() {
+            let rows = (band.len() / (res as usize * 4)) as u32;
+            let region = Region::rows(full.res, b as u32 * 5, rows);
+            blend
+                .splat_region_rgba(&[1.0], kernel, region, band)
+                .unwrap();
+        }
         for cell in 0..cells {
             assert_eq!(
                 d1[cell].to_bits(),
@@ -441,16 +585,37 @@ fn points_on_cutoff_ties_keep_their_bits() {
             for a in 0..3 {
                 assert_eq!(c1[cell * 3 + a].to_bits(), c0[cell * 3 + a].to_bits());
             }
+            let want = [c0[cell * 3], c0[cell * 3 + 1], c0[cell * 3 + 2], d0[cell]];
+            for a in 0..4 {
+                assert_eq!(
+                    r1[cell * 4 + a].to_bits(),
+                    want[a].to_bits(),
+                    "res {res} σ {sigma_cells} cell {cell} (rgba)"
+                );
+                assert_eq!(
+                    r2[cell * 4 + a].to_bits(),
+                    want[a].to_bits(),
+                    "res {res} σ {sigma_cells} cell {cell} (rgba bands)"
+                );
+            }
         }
     }
 }
 
-/// Grids far finer than f32 resolves near the points (2^22–2^24 cells per axis, where a coordinate
-/// times the resolution keeps at most two bits below the cell): point grids still equal per-cell
-/// point queries, bit for bit.
+/// Grids far finer than f32 resolves near the points (2^18–2^24 cells per axis; at 2^22 and more
+/// a coordinate times the resolution keeps at most two bits below the cell): point grids still
+/// equal per-cell point queries, and RGBA splats planar ones, bit for bit.
 #[test]
 fn very_fine_grids_match_point_queries() {
-    for (shift, sigma_cells) in [(22u32, 0.5f32), (23, 0.7), (24, 0.3), (21, 0.8)] {
+    for (shift, sigma_cells) in [
+        (22u32, 0.5f32),
+        (23, 0.7),
+        (24, 0.3),
+        (21, 0.8),
+        (20, 0.5),
+        (19, 0.45),
+        (18, 0.5),
+    ] {
         let res = 1u32 << shift;
         let size = 24u32;
         let start = (res / 10) * 7;
@@ -490,5 +655,23 @@ fn very_fine_grids_match_point_queries() {
             );
         }
         assert!(nonzero > 0, "res 2^{shift}: the region holds points");
+        // Splats: RGBA (the 3×3 blocks up to 2^20 cells at σ <= ½ cell, the general path beyond)
+        // against the planar region splat's exact spans.
+        let cells = (size * size) as usize;
+        let (mut d, mut c) = (vec![0.0f32; cells], vec![0.0f32; cells * 3]);
+        prep.splat_region(kernel, region, &mut d, Some(&mut c))
+            .unwrap();
+        let mut rgba = vec![0.0f32; cells * 4];
+        prep.splat_region_rgba(kernel, region, &mut rgba).unwrap();
+        for cell in 0..cells {
+            let want = [c[3 * cell], c[3 * cell + 1], c[3 * cell + 2], d[cell]];
+            for a in 0..4 {
+                assert_eq!(
+                    rgba[cell * 4 + a].to_bits(),
+                    want[a].to_bits(),
+                    "res 2^{shift} cell {cell}"
+                );
+            }
+        }
     }
 }

@@ -174,6 +174,13 @@ pub fn exercise(rng: &mut Rng, proxy: &[u8], maps: &[&[u8]]) -> usize {
                 color: Some(&mut color),
             },
         );
+        // RGBA cells mixed on the fly, over a region of the grid (maybe a bad one).
+        let mut region = Region::full(res);
+        region.start[0] = rng.below(r as usize + 1) as u32;
+        region.size[0] = r.saturating_sub(region.start[0]).max(rng.below(2) as u32);
+        let rcells = region.cells(d).unwrap_or(0);
+        let mut rgba = vec![0.0f32; rcells * 4 + (rng.below(8) == 0) as usize];
+        let _ = blend.splat_region_rgba(&w, Kernel { sigma }, region, &mut rgba);
     }
     // Prepared once (decoding every map into f32 buffers), then its queries.
     let sizes = blend.prepared_sizes();
@@ -216,6 +223,8 @@ pub fn exercise(rng: &mut Rng, proxy: &[u8], maps: &[&[u8]]) -> usize {
         let mut density = vec![0.0f32; cells];
         let mut color = vec![0.0f32; cells * 3];
         let _ = prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color));
+        let mut rgba = vec![0.0f32; cells * 4];
+        let _ = prep.splat_region_rgba(kernel, Region::full(res), &mut rgba);
     }
     opened
 }
