@@ -613,19 +613,28 @@ fn merge_lists(
             (lens, out, vals)
         })
         .collect();
-    let mut out_ptr = Vec::with_capacity(m + 1);
-    out_ptr.push(0);
+    concat(chunks, m)
+}
+
+/// Chunks of lists (per chunk: list lengths, entries, values) concatenated in order, as
+/// (ptr, entries, values) over `m` lists.
+fn concat(
+    chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)>,
+    m: usize,
+) -> (Vec<usize>, Vec<u32>, Vec<f32>) {
+    let mut ptr = Vec::with_capacity(m + 1);
+    ptr.push(0);
     let total: usize = chunks.iter().map(|c| c.1.len()).sum();
     let mut out = Vec::with_capacity(total);
     let mut vals = Vec::with_capacity(total);
     for (lens, o, v) in chunks {
         for l in lens {
-            out_ptr.push(out_ptr.last().unwrap() + l as usize);
+            ptr.push(ptr.last().unwrap() + l as usize);
         }
         out.extend(o);
         vals.extend(v);
     }
-    (out_ptr, out, vals)
+    (ptr, out, vals)
 }
 
 /// A kernel from its rows (per chunk: row lengths, columns, values), with the transpose.
@@ -635,18 +644,7 @@ fn assemble(
     nt: usize,
     f: Vec<f64>,
 ) -> Kernel {
-    let mut row_ptr = Vec::with_capacity(m + 1);
-    row_ptr.push(0);
-    let total: usize = chunks.iter().map(|c| c.1.len()).sum();
-    let mut col = Vec::with_capacity(total);
-    let mut k = Vec::with_capacity(total);
-    for (lens, c, v) in chunks {
-        for l in lens {
-            row_ptr.push(row_ptr.last().unwrap() + l as usize);
-        }
-        col.extend(c);
-        k.extend(v);
-    }
+    let (row_ptr, col, k) = concat(chunks, m);
     let (col_ptr, row, src_pos) = transpose(&row_ptr, &col, nt);
     let kt = src_pos.iter().map(|&e| k[e]).collect();
     Kernel {

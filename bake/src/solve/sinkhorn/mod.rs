@@ -595,6 +595,13 @@ fn extrapolate<const D: usize>(
         .collect()
 }
 
+/// Most pairs a kernel on `rows` rows may keep: [`MAX_PAIRS_PER_POINT`] per row, [`MAX_PAIRS`] in all.
+fn pair_limit(rows: usize) -> usize {
+    MAX_PAIRS_PER_POINT
+        .saturating_mul(rows.max(1))
+        .min(MAX_PAIRS)
+}
+
 /// Builds a stage's kernel, refusing one whose size is no longer linear in n (more than
 /// [`MAX_PAIRS_PER_POINT`] per point, or [`MAX_PAIRS`] in all): the search stops as soon as it has
 /// found that many pairs, so the refusal costs bounded memory.
@@ -610,7 +617,7 @@ fn build_kernel<const D: usize>(
     spacing: f64,
 ) -> Result<Kernel, SolveError> {
     let rows = hs.levels[level].len().max(1);
-    let limit = MAX_PAIRS_PER_POINT.saturating_mul(rows).min(MAX_PAIRS);
+    let limit = pair_limit(rows);
     kernel::build(hs, ht, level, g, eps, settings.truncate, wrap, limit).ok_or_else(|| {
         let blur = eps.sqrt();
         SolveError::InvalidSettings {
@@ -834,9 +841,7 @@ fn iterate<const D: usize>(
             let g = absorbed(&st.g, &st.v, &b, st.eps);
             let tk = std::time::Instant::now();
             let rows = hs.levels[st.level].len();
-            let limit = MAX_PAIRS_PER_POINT
-                .saturating_mul(rows.max(1))
-                .min(MAX_PAIRS);
+            let limit = pair_limit(rows);
             let local = kernel::rebuild_local(
                 hs,
                 ht,
