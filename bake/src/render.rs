@@ -199,18 +199,30 @@ pub fn render<'a>(
         Method::Splat => {
             // No `prepare`: each band's splat mixes the maps as its traversal reads them (the
             // points near the band only), into RGBA cells (color, then density), and shades its
-            // rows while they are in cache.
+            // rows while they are in cache. One band per thread, of about equally many points: a
+            // band also splats the points within the kernel's reach of its borders (at σ = ½ px
+            // three rows' worth per border), so more bands cost more work (8 bands of a 256²
+            // image: a quarter more than 1).
             let mean_mass = blend.mean_mass(weights).map_err(runtime("--weights"))?;
             let mut rgba = SPLAT.with(|b| std::mem::take(&mut *b.borrow_mut()));
             rgba.resize(w * h * 4, 0.0);
-            rgba.par_chunks_mut(w * band * 4)
-                .zip(img.pixels.par_chunks_mut(w * band * 4))
-                .enumerate()
-                .try_for_each(|(b, (cells, pixels))| {
+            let starts = balanced_bands(maps, weights, h, rayon::current_num_threads());
+            let mut bands = Vec::with_capacity(starts.len());
+            let (mut cells, mut pixels) = (&mut rgba[..], &mut img.pixels[..]);
+            for pair in starts.windows(2) {
+                let len = (pair[1] - pair[0]) * w * 4;
+                let (c, rest) = cells.split_at_mut(len);
+                let (p, rest_p) = pixels.split_at_mut(len);
+                bands.push((pair[0], c, p));
+                (cells, pixels) = (rest, rest_p);
+            }
+            bands
+                .into_par_iter()
+                .try_for_each(|(first, cells, pixels)| {
                     // A splat adds to its cells: start from zeros.
                     cells.fill(0.0);
                     let rows = (cells.len() / (w * 4)) as u32;
-                    let region = Region::rows(res, (b * band) as u32, rows);
+                    let region = Region::rows(res, first as u32, rows);
                     blend.splat_region_rgba(weights, kernel, region, cells)?;
                     for (px, c) in pixels.chunks_exact_mut(4).zip(cells.chunks_exact(4)) {
                         px.copy_from_slice(&shade(rule, c[3] * mean_mass, [c[0], c[1], c[2]]));
@@ -232,6 +244,53 @@ thread_local! {
     static VALUES: std::cell::RefCell<Vec<PointValue>> = const { std::cell::RefCell::new(Vec::new()) };
     /// RGBA cells (color, then density) of the last `splat` image rendered on this thread.
     static SPLAT: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// First rows of `bands` horizontal bands of an image `h` rows high holding about equally many
+/// blended points, then `h`: the splat's work is per point. Counted from the blend's node boxes at
+/// a coarse level of the tree (at most 256 nodes, each node's points spread evenly over the rows
+/// its box covers), which costs a few hundred box reads; equal bands where the tree has no
+/// internal node. Bands may be empty.
+fn balanced_bands(maps: &[Map<'_>], weights: &[f32], h: usize, bands: usize) -> Vec<usize> {
+    let bands = bands.clamp(1, h.max(1));
+    let equal = || (0..=bands).map(|b| b * h / bands).collect();
+    let Some(first) = maps.first() else {
+        return equal();
+    };
+    let (n, depth) = (first.n(), first.depth());
+    if depth == 0 || bands == 1 {
+        return equal();
+    }
+    let level = (depth - 1).min(8);
+    let mut rows = vec![0.0f64; h];
+    for offset in 0..1u32 << level {
+        let node = otbake_formats::tree::node_at(n, level, offset);
+        let (mut lo, mut hi) = (0.0f32, 0.0f32);
+        for (w, m) in weights.iter().zip(maps) {
+            let (l, u) = m.view().internal_box(node.index as usize);
+            lo += w * l[1];
+            hi += w * u[1];
+        }
+        // Rows the box covers, clamped to the image (a periodic blend's lifts may lie outside).
+        let row = |v: f32| ((v * h as f32).floor().max(0.0) as usize).min(h - 1);
+        let (a, b) = (row(lo), row(hi).max(row(lo)));
+        let share = f64::from(node.count) / (b + 1 - a) as f64;
+        for r in &mut rows[a..=b] {
+            *r += share;
+        }
+    }
+    let total: f64 = rows.iter().sum();
+    let mut starts = vec![0];
+    let mut acc = 0.0;
+    for (r, &count) in rows.iter().enumerate() {
+        acc += count;
+        while starts.len() < bands && acc >= total * starts.len() as f64 / bands as f64 {
+            starts.push(r + 1);
+        }
+    }
+    starts.resize(bands, h);
+    starts.push(h);
+    starts
 }
 
 /// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the

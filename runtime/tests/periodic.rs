@@ -378,7 +378,7 @@ proptest! {
     /// (a shift) would lose the terms from across the seam.
     #[test]
     fn narrow_kernel_regions_wrap_like_their_references(seed in 0u64..1000, n in 1usize..400,
-                                                        k in 1usize..4, sigma_cells in 0.15f32..0.8,
+                                                        k in 1usize..=4, sigma_cells in 0.15f32..0.8,
                                                         st in 0usize..STORAGES.len()) {
         let t = torus(seed, n, 2, k, STORAGES[st], [1, 1]);
         let (proxy, maps) = open(&t);

@@ -234,12 +234,12 @@ proptest! {
         }
     }
 
-    /// RGBA region splats, prepared or mixed on the fly, in every dimension and storage, with
-    /// kernels on both sides of the 3×3 blocks' limit (σ = ½ cell) and wide ones: the bits of the
-    /// full (planar) splat, over any start values.
+    /// RGBA region splats, prepared or mixed on the fly (four `f32` maps in one pass), in every
+    /// dimension and storage, with kernels on both sides of the 3×3 blocks' limit (σ = ½ cell) and
+    /// wide ones: the bits of the full (planar) splat, over any start values.
     #[test]
     fn rgba_region_splats_equal_the_full_splat(seed in 0u64..10_000, n in 1usize..400,
-                                               dim in 1usize..=3, leaf in 1u32..9, k in 1usize..4,
+                                               dim in 1usize..=3, leaf in 1u32..9, k in 1usize..=4,
                                                sigma_cells in 0.1f32..1.2, wide in 0u32..4,
                                                st in 0..STORAGES.len() + 1) {
         let storage = STORAGES.get(st).copied().unwrap_or(otbake_runtime::Storage {

@@ -94,6 +94,26 @@ fn splat_and_point_query_render_the_same_image() {
     assert!(max < 1e-3, "largest pixel difference {max}");
     // The image is not trivially blank: ink (dark pixels) and paper (white) both appear.
     assert!(q.pixels.chunks(4).any(|p| p[0] < 0.2) && q.pixels.chunks(4).any(|p| p[0] > 0.99));
+    // Both methods give the same bits on any number of threads (the splat's bands, one per
+    // thread, are balanced by point counts; the query's by rows).
+    for threads in [1, 2, 3, 5] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for (method, want) in [(Method::Query, &q), (Method::Splat, &sp)] {
+            let got = pool
+                .install(|| render(a.proxy().unwrap(), &maps, &w, &s(method)))
+                .unwrap();
+            assert!(
+                got.pixels
+                    .iter()
+                    .zip(&want.pixels)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{method:?} on {threads} threads"
+            );
+        }
+    }
 }
 
 #[test]
