@@ -37,7 +37,7 @@
 //! #     let map = |pos: &[f32]| {
 //! #         write::encode_map_content(&write::MapContent { dim: 2, depth: d, proxy_key: [1; 32],
 //! #             key: [2; 32], composite: 0, mean_mass: 0.5, wrap: otbake_runtime::Wrap::Clamp,
-//! #             positions: pos, colors: &[],
+//! #             positions: pos, colors: &[], spacings: &[],
 //! #             solver_report: "", transport_cost: 0.0 }, otbake_formats::storage::Storage::FULL).unwrap()
 //! #     };
 //! #     (p, map(&[0.1, 0.1, 0.3, 0.3]), map(&[0.5, 0.5, 0.9, 0.9]))
@@ -72,6 +72,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod adaptive;
 mod archive;
 mod blend;
 mod error;
@@ -87,6 +88,7 @@ mod splat;
 mod splat_region;
 mod stack;
 
+pub use adaptive::AdaptiveKernel;
 pub use archive::{Map, Proxy};
 pub use blend::{Blend, Sample};
 pub use error::Error;

@@ -462,6 +462,8 @@ fn extreme_values_never_panic() {
         colors: &bytes(&colors),
         node_boxes: &bytes(&boxes[..internal * 4]),
         node_colors: &sums,
+        spacings: &[],
+        node_spacings: &[],
         solver_report: "",
         transport_cost: 0.0,
     })

@@ -32,6 +32,8 @@ pub struct Fixture {
     /// Per map: positions and colors, as written.
     pub positions: Vec<Vec<f32>>,
     pub colors: Vec<Vec<f32>>,
+    /// Per map: spacings as written (codes round them up: see `decoded_spacing`).
+    pub spacings: Vec<Vec<f32>>,
     pub mean_mass: Vec<f32>,
 }
 
@@ -99,6 +101,7 @@ pub fn fixture_with(
         maps: vec![],
         positions: vec![],
         colors: vec![],
+        spacings: vec![],
         mean_mass: vec![],
     };
     for m in 0..k {
@@ -111,6 +114,12 @@ pub fn fixture_with(
             .collect();
         let colors: Vec<f32> = (0..n * 3).map(|_| rng.unit() * 2.0).collect();
         let mean = 0.1 + rng.unit();
+        // Spacings from their own generator (the other streams stay as they were), over two
+        // decades: adaptive kernels of every width, unrelated to where the points are.
+        let mut srng = Rng(seed ^ (0x5EED_0000 + m as u64));
+        let spacings: Vec<f32> = (0..n)
+            .map(|_| 10f32.powf(-2.5 + 2.0 * srng.unit()))
+            .collect();
         f.maps.push(
             encode_map_content(
                 &MapContent {
@@ -123,6 +132,7 @@ pub fn fixture_with(
                     wrap: otbake_formats::Wrap::Clamp,
                     positions: &pos,
                     colors: &colors,
+                    spacings: &spacings,
                     solver_report: "",
                     transport_cost: 0.0,
                 },
@@ -132,6 +142,7 @@ pub fn fixture_with(
         );
         f.positions.push(pos);
         f.colors.push(colors);
+        f.spacings.push(spacings);
         f.mean_mass.push(mean);
     }
     f
@@ -151,6 +162,16 @@ impl Fixture {
             }
         }
         (p, c)
+    }
+
+    /// Blended spacing of point i as the runtime reads it: Σ w_k decode(code_k[i]) in map order.
+    pub fn blended_spacing(&self, w: &[f32], i: usize) -> f32 {
+        use otbake_formats::spacing::{decode, encode_up};
+        let mut s = 0.0f32;
+        for (k, wk) in w.iter().enumerate() {
+            s += wk * decode(encode_up(self.spacings[k][i]));
+        }
+        s
     }
 
     pub fn mean_mass(&self, w: &[f32]) -> f32 {
