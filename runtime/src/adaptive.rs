@@ -36,7 +36,8 @@
 //! node, validated at open) is at least `s_i` for every point below it, with the same operations in
 //! the same order and monotone rounding; so is `clamp(scale · …)`, and the node is skipped only if
 //! its blended box lies farther than `3 · σ_bound` from `q`: no point below it can contribute.
-//! Leaves are not tested as a whole: each point is tested against its own `3σ_i`.
+//! Leaves are not tested as a whole: their points are cut by their parent's bound first (before
+//! their own width is blended), then each against its own `3σ_i`.
 
 use crate::blend::{mix, Blend, Source, Weighted};
 use crate::error::Error;
@@ -174,44 +175,84 @@ pub(crate) fn accumulate(
 ) {
     let d = s.dim();
     let q = &q[..d];
+    let depth = s.depth();
     let mut leaf = s.leaf_state();
+    if depth == 0 {
+        // The root is the only leaf: no bound but every point's own.
+        add_leaf(
+            s,
+            Node::root(s.n()),
+            q,
+            k,
+            f32::INFINITY,
+            &mut leaf,
+            sum,
+            csum,
+        );
+        return;
+    }
     let mut stack = Stack::new(Node::root(s.n()));
     while let Some(node) = stack.pop() {
         if node.count == 0 {
             continue;
         }
-        if node.level < s.depth() {
-            let (lo, hi) = s.node_box(node, &mut leaf);
-            let bound = k.sigma(s.node_spacing(node));
-            if box_distance2(q, &lo[..d], &hi[..d]) > reach2(bound) {
-                continue;
-            }
-            let (l, r) = node.children();
-            stack.push(r);
-            stack.push(l);
+        let (lo, hi) = s.node_box(node, &mut leaf);
+        let bound = reach2(k.sigma(s.node_spacing(node)));
+        if box_distance2(q, &lo[..d], &hi[..d]) > bound {
             continue;
         }
-        s.enter(node, &mut leaf);
-        for i in node.range() {
-            let y = s.position(&leaf, i);
-            let mut r2 = 0.0;
-            for a in 0..d {
-                let t = y[a] - q[a];
-                r2 += t * t;
+        let (l, r) = node.children();
+        if node.level + 1 == depth {
+            // Its leaves, in order, with this node's bound as a first cut for their points.
+            add_leaf(s, l, q, k, bound, &mut leaf, sum, csum);
+            add_leaf(s, r, q, k, bound, &mut leaf, sum, csum);
+        } else {
+            stack.push(r);
+            stack.push(l);
+        }
+    }
+}
+
+/// Adds the points of `leaf` within their own reach of `q`; points farther than `bound` (a reach²
+/// at least every one of theirs) are skipped before their width is blended.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn add_leaf<S: Spaced>(
+    s: &S,
+    leaf: Node,
+    q: &[f32],
+    k: &Checked,
+    bound: f32,
+    state: &mut S::Leaf,
+    sum: &mut f32,
+    csum: &mut [f32; 3],
+) {
+    if leaf.count == 0 {
+        return;
+    }
+    s.enter(leaf, state);
+    for i in leaf.range() {
+        let y = s.position(state, i);
+        let mut r2 = 0.0;
+        for (a, &qa) in q.iter().enumerate() {
+            let t = y[a] - qa;
+            r2 += t * t;
+        }
+        if r2 > bound {
+            continue;
+        }
+        let sigma = k.sigma(s.spacing(i));
+        if r2 <= reach2(sigma) {
+            let mut sd = 1.0f32;
+            for _ in 0..k.dim {
+                sd *= sigma;
             }
-            let sigma = k.sigma(s.spacing(i));
-            if r2 <= reach2(sigma) {
-                let mut sd = 1.0f32;
-                for _ in 0..k.dim {
-                    sd *= sigma;
-                }
-                let w = k.norm / sd * kernel::exp(r2 * (-0.5 / (sigma * sigma)));
-                *sum += w;
-                if s.has_color() {
-                    let c = s.color(i);
-                    for (a, c) in csum.iter_mut().zip(c) {
-                        *a += w * c;
-                    }
+            let w = k.norm / sd * kernel::exp(r2 * (-0.5 / (sigma * sigma)));
+            *sum += w;
+            if s.has_color() {
+                let c = s.color(i);
+                for (a, c) in csum.iter_mut().zip(c) {
+                    *a += w * c;
                 }
             }
         }
