@@ -187,9 +187,13 @@ enum Command {
         /// Image side in pixels.
         #[arg(long, default_value_t = 256)]
         size: usize,
-        /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
-        sigma: f32,
+        /// A fixed kernel of this standard deviation in unit-cube units (e.g. 0.02), instead of
+        /// the default density-adaptive kernel.
+        #[arg(long, conflicts_with = "scale")]
+        sigma: Option<f32>,
+        /// Width of the adaptive kernel in local spacings of the blend.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        scale: f32,
         /// Exposure (default: 99th percentile of the disk's luminance → 1).
         #[arg(long)]
         exposure: Option<f32>,
@@ -207,9 +211,13 @@ enum Command {
         /// Sphere diameter in pixels.
         #[arg(long, default_value_t = 64)]
         size: usize,
-        /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
-        sigma: f32,
+        /// A fixed kernel of this standard deviation in unit-cube units (e.g. 0.02), instead of
+        /// the default density-adaptive kernel.
+        #[arg(long, conflicts_with = "scale")]
+        sigma: Option<f32>,
+        /// Width of the adaptive kernel in local spacings of the blend.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        scale: f32,
         /// Output image (.png or .exr).
         #[arg(short, long)]
         output: PathBuf,
@@ -226,9 +234,13 @@ enum Command {
             allow_hyphen_values = true
         )]
         weights: Vec<f32>,
-        /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
-        sigma: f32,
+        /// A fixed kernel of this standard deviation in unit-cube units (e.g. 0.02), instead of
+        /// the default density-adaptive kernel.
+        #[arg(long, conflicts_with = "scale")]
+        sigma: Option<f32>,
+        /// Width of the adaptive kernel in local spacings of the blend.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        scale: f32,
         /// Output MERL file (.binary).
         #[arg(short, long)]
         output: PathBuf,
@@ -624,6 +636,7 @@ fn run(cli: Cli) -> Result<()> {
             theta_i,
             size,
             sigma,
+            scale,
             exposure,
             output,
         } => {
@@ -634,7 +647,11 @@ fn run(cli: Cli) -> Result<()> {
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
-            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let b = otbake::brdf::eval::BrdfBlend::with_kernel(
+                archives.proxy()?,
+                &maps,
+                brdf_kernel(sigma, scale),
+            )?;
             let img =
                 otbake::brdf::render::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
             write_image(&output, &img)?;
@@ -644,6 +661,7 @@ fn run(cli: Cli) -> Result<()> {
             steps,
             size,
             sigma,
+            scale,
             output,
         } => {
             if !(2..=4096).contains(&size) {
@@ -652,7 +670,11 @@ fn run(cli: Cli) -> Result<()> {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
-            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let b = otbake::brdf::eval::BrdfBlend::with_kernel(
+                archives.proxy()?,
+                &maps,
+                brdf_kernel(sigma, scale),
+            )?;
             let img = otbake::brdf::render::spheres(&b, steps, size, &Default::default())
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             write_image(&output, &img)?;
@@ -661,13 +683,18 @@ fn run(cli: Cli) -> Result<()> {
             manifest,
             weights,
             sigma,
+            scale,
             output,
         } => {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
-            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let b = otbake::brdf::eval::BrdfBlend::with_kernel(
+                archives.proxy()?,
+                &maps,
+                brdf_kernel(sigma, scale),
+            )?;
             otbake::brdf::render::export_merl(&b, &weights)?.write(&output)?;
         }
         Command::Volume {
@@ -781,4 +808,16 @@ fn run(cli: Cli) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The BRDF commands' kernel: fixed if `--sigma` is given, else adaptive `--scale` spacings wide.
+fn brdf_kernel(sigma: Option<f32>, scale: f32) -> otbake::brdf::eval::BrdfKernel {
+    use otbake::brdf::eval::{BrdfKernel, DEFAULT_ADAPTIVE};
+    match sigma {
+        Some(sigma) => BrdfKernel::Fixed(otbake_runtime::Kernel { sigma }),
+        None => BrdfKernel::Adaptive(otbake_runtime::AdaptiveKernel {
+            scale,
+            ..DEFAULT_ADAPTIVE
+        }),
+    }
 }
