@@ -611,7 +611,11 @@ fn build_map(
             })
             .collect()
     };
-    let spacings = crate::spacing::spacings(&positions, dim, proxy.wrap);
+    let spacings = if m.storage.spacings {
+        crate::spacing::spacings(&positions, dim, proxy.wrap)
+    } else {
+        Vec::new()
+    };
     Ok(MapData {
         key,
         proxy_key: proxy.key,

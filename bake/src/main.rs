@@ -647,11 +647,7 @@ fn run(cli: Cli) -> Result<()> {
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
-            let b = otbake::brdf::eval::BrdfBlend::with_kernel(
-                archives.proxy()?,
-                &maps,
-                brdf_kernel(sigma, scale),
-            )?;
+            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             let img =
                 otbake::brdf::render::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
             write_image(&output, &img)?;
@@ -670,11 +666,7 @@ fn run(cli: Cli) -> Result<()> {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
-            let b = otbake::brdf::eval::BrdfBlend::with_kernel(
-                archives.proxy()?,
-                &maps,
-                brdf_kernel(sigma, scale),
-            )?;
+            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             let img = otbake::brdf::render::spheres(&b, steps, size, &Default::default())
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             write_image(&output, &img)?;
@@ -690,11 +682,7 @@ fn run(cli: Cli) -> Result<()> {
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
-            let b = otbake::brdf::eval::BrdfBlend::with_kernel(
-                archives.proxy()?,
-                &maps,
-                brdf_kernel(sigma, scale),
-            )?;
+            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             otbake::brdf::render::export_merl(&b, &weights)?.write(&output)?;
         }
         Command::Volume {
@@ -810,14 +798,32 @@ fn run(cli: Cli) -> Result<()> {
     Ok(())
 }
 
-/// The BRDF commands' kernel: fixed if `--sigma` is given, else adaptive `--scale` spacings wide.
-fn brdf_kernel(sigma: Option<f32>, scale: f32) -> otbake::brdf::eval::BrdfKernel {
-    use otbake::brdf::eval::{BrdfKernel, DEFAULT_ADAPTIVE};
-    match sigma {
+/// The BRDF commands' blend: a fixed kernel if `--sigma` is given, else the adaptive one `--scale`
+/// spacings wide (which needs maps baked with spacings).
+fn brdf_blend<'a, 'm>(
+    proxy: otbake_runtime::Proxy<'a>,
+    maps: &'m [otbake_runtime::Map<'a>],
+    sigma: Option<f32>,
+    scale: f32,
+) -> Result<otbake::brdf::eval::BrdfBlend<'a, 'm>> {
+    use otbake::brdf::eval::{BrdfBlend, BrdfBlendError, BrdfKernel, DEFAULT_ADAPTIVE};
+    let kernel = match sigma {
         Some(sigma) => BrdfKernel::Fixed(otbake_runtime::Kernel { sigma }),
         None => BrdfKernel::Adaptive(otbake_runtime::AdaptiveKernel {
             scale,
             ..DEFAULT_ADAPTIVE
         }),
+    };
+    match BrdfBlend::with_kernel(proxy, maps, kernel) {
+        Err(BrdfBlendError::Runtime(otbake_runtime::Error::MissingAttribute {
+            map,
+            attribute: "spacings",
+        })) => bail!(
+            "map {map} stores no spacings, which the default (density-adaptive) kernel needs: rebake with `spacings = true` in `[storage]`, or pass --sigma 0.02 for a fixed kernel"
+        ),
+        Err(BrdfBlendError::Runtime(otbake_runtime::Error::BadSigma)) => bail!(
+            "--sigma must be a positive number (e.g. 0.02) and --scale a positive number of spacings (e.g. 2)"
+        ),
+        other => Ok(other?),
     }
 }

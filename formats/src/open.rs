@@ -168,8 +168,8 @@ pub fn open_map(bytes: &[u8]) -> Result<&ArchivedMap<'_>, FormatError> {
     }
     check(all_finite(&m.node_colors), "node_colors")?;
     // Spacings: none, or a code per point and the largest code of each internal node's points.
-    let spaced = !m.spacings.is_empty();
-    check(!spaced || m.spacings.len() == n, "spacings")?;
+    let spaced = storage.spacings;
+    check(m.spacings.len() == if spaced { n } else { 0 }, "spacings")?;
     check(
         m.node_spacings.len() == if spaced { internal } else { 0 },
         "node_spacings",

@@ -164,7 +164,7 @@ impl<'a> MapView<'a> {
 
     /// Whether points carry spacings ([`crate::spacing`]; adaptive point queries need them).
     pub fn has_spacings(&self) -> bool {
-        !self.archived.spacings.is_empty()
+        self.storage.spacings
     }
 
     /// Decoded spacing of point `i` ([`crate::spacing::decode`]; code 0 past the end or without

@@ -72,7 +72,8 @@ pub struct MapContent<'a> {
     pub positions: &'a [f32],
     /// `n·3` color ratios, or empty.
     pub colors: &'a [f32],
-    /// `n` local spacings of the mapped points ([`crate::spacing`]), or empty to store none.
+    /// `n` local spacings of the mapped points ([`crate::spacing`]), or empty (then none are stored,
+    /// whatever the storage says).
     pub spacings: &'a [f32],
     /// Solver report.
     pub solver_report: &'a str,
@@ -94,7 +95,8 @@ fn push_code(out: &mut Vec<u8>, q: u32, p: Precision) {
 /// Archive bytes of a map stored per `storage` (see [`crate::storage`] for the encodings): node
 /// boxes rounded outward, positions and colors rounded to nearest, node color sums of the decoded
 /// colors, spacings rounded up to their codes and node spacing bounds of those codes. Colors are
-/// dropped when `storage` stores none (and nothing of color is stored when the content has none).
+/// dropped when `storage` stores none (and nothing of color is stored when the content has none),
+/// spacings likewise.
 /// Deterministic: the same content and storage give the same bytes.
 ///
 /// # Panics
@@ -113,6 +115,11 @@ pub fn encode_map_content(
     );
     let depth = c.depth;
     let storage = storage.for_input(!c.colors.is_empty());
+    // Spacings are stored when the storage asks for them and the content has them.
+    let storage = Storage {
+        spacings: storage.spacings && !c.spacings.is_empty(),
+        ..storage
+    };
     let internal = tree::internal_count(depth) as usize;
 
     // Exact boxes of every node; internal ones are stored, the root's is `bounds`.
@@ -217,7 +224,11 @@ pub fn encode_map_content(
     };
 
     // Spacings rounded up to their codes; each internal node keeps the largest code below it.
-    let spacings: Vec<u8> = c.spacings.iter().map(|&s| spacing::encode_up(s)).collect();
+    let spacings: Vec<u8> = if storage.spacings {
+        c.spacings.iter().map(|&s| spacing::encode_up(s)).collect()
+    } else {
+        Vec::new()
+    };
     let node_spacings = if spacings.is_empty() {
         Vec::new()
     } else {

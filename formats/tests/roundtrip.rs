@@ -150,6 +150,8 @@ fn every_storage_round_trips_within_its_bounds() {
                         node_boxes,
                         colors: c,
                         node_colors: node_colors && c.is_some(),
+                        // The sample content has no spacings, so none are stored.
+                        spacings: false,
                     };
                     let (_, m) = sample_archives_with(s);
                     let m = aligned_copy(&m);
@@ -180,7 +182,7 @@ fn inconsistent_storage_fields_are_refused() {
     let internal = internal_count(d) as usize;
     let boxes = vec![0u8; internal * 4 * 4];
     let posb: Vec<u8> = pos.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let forge = |storage: [u8; 4],
+    let forge = |codes: [u8; 4],
                  bounds: &[f32],
                  color_range: &[f32],
                  positions: &[u8],
@@ -196,7 +198,7 @@ fn inconsistent_storage_fields_are_refused() {
             composite: 0,
             mean_mass: 0.5,
             wrap: 0,
-            storage,
+            storage: [codes[0], codes[1], codes[2], codes[3], 0],
             bounds,
             color_range,
             positions,
@@ -322,7 +324,7 @@ fn inconsistent_storage_fields_are_refused() {
         composite: 0,
         mean_mass: 0.5,
         wrap: 0,
-        storage: [0, 0, 0, 0],
+        storage: [0, 0, 0, 0, 0],
         bounds: &b,
         color_range: &[],
         positions: &posb,
@@ -345,7 +347,7 @@ fn inconsistent_storage_fields_are_refused() {
         composite: 0,
         mean_mass: 0.5,
         wrap: 0,
-        storage: [0, 0, 0, 0],
+        storage: [0, 0, 0, 0, 0],
         bounds: &wide_bounds,
         color_range: &[],
         positions: &posb,
@@ -461,7 +463,7 @@ fn wrap_codes_and_periodic_ranges_are_checked() {
             composite: 0,
             mean_mass: 0.5,
             wrap,
-            storage: [0, 0, 0, 0],
+            storage: [0, 0, 0, 0, 0],
             bounds: &boxes[..4],
             color_range: &[],
             positions: &posb,
@@ -493,7 +495,13 @@ fn spacings_round_trip_and_bad_spacings_are_refused() {
     use otbake_formats::tree::{node_at, Node};
     let (pos, colors, d) = sample_data();
     let spacings: Vec<f32> = (0..37).map(|i| 0.001 * (1.0 + i as f32)).collect();
-    for storage in [Storage::FULL, Storage::COMPACT] {
+    for storage in [
+        Storage::FULL,
+        Storage {
+            spacings: true,
+            ..Storage::COMPACT
+        },
+    ] {
         let bytes = aligned_copy(
             &encode_map_content(
                 &MapContent {
@@ -531,7 +539,7 @@ fn spacings_round_trip_and_bad_spacings_are_refused() {
         .flat_map(|v| v.to_le_bytes())
         .collect();
     let posb: Vec<u8> = pos.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let forge = |spacings: &[u8], node_spacings: &[u8]| {
+    let forge = |stored: bool, spacings: &[u8], node_spacings: &[u8]| {
         let bytes = encode_map(&Map {
             dim: 2,
             n: 37,
@@ -541,7 +549,7 @@ fn spacings_round_trip_and_bad_spacings_are_refused() {
             composite: 0,
             mean_mass: 0.5,
             wrap: 0,
-            storage: [0, 0, 0, 0],
+            storage: [0, 0, 0, 0, stored as u8],
             bounds: &[boxes[0], boxes[1], boxes[2], boxes[3]],
             color_range: &[],
             positions: &posb,
@@ -559,21 +567,41 @@ fn spacings_round_trip_and_bad_spacings_are_refused() {
     let codes: Vec<u8> = (0..37).map(|i| 100 + i as u8).collect();
     let mut nodes = vec![0u8; internal];
     otbake_formats::tree::fill_internal_max(&codes, d, &mut nodes);
-    assert!(forge(&codes, &nodes).is_ok());
-    assert!(forge(&[], &[]).is_ok());
-    let refused = |s: &[u8], ns: &[u8]| match forge(s, ns) {
+    assert!(forge(true, &codes, &nodes).is_ok());
+    assert!(forge(false, &[], &[]).is_ok());
+    let refused = |stored: bool, s: &[u8], ns: &[u8]| match forge(stored, s, ns) {
         Err(FormatError::Inconsistent { field }) => field,
         other => panic!("expected a refusal, got {other:?}"),
     };
-    assert_eq!(refused(&codes[..36], &nodes), "spacings");
-    assert_eq!(refused(&codes, &[]), "node_spacings");
-    assert_eq!(refused(&[], &nodes), "node_spacings");
-    assert_eq!(refused(&codes, &nodes[..internal - 1]), "node_spacings");
+    assert_eq!(refused(true, &codes[..36], &nodes), "spacings");
+    assert_eq!(refused(true, &[], &[]), "spacings");
+    assert_eq!(refused(false, &codes, &nodes), "spacings");
+    assert_eq!(refused(true, &codes, &[]), "node_spacings");
+    assert_eq!(refused(false, &[], &nodes), "node_spacings");
+    assert_eq!(
+        refused(true, &codes, &nodes[..internal - 1]),
+        "node_spacings"
+    );
     // A point above its leaf's parent's bound, and a node above its parent's.
     let mut high = codes.clone();
     high[20] = 255;
-    assert_eq!(refused(&high, &nodes), "node_spacings");
+    assert_eq!(refused(true, &high, &nodes), "node_spacings");
     let mut low = nodes.clone();
     low[0] -= 1;
-    assert_eq!(refused(&codes, &low), "node_spacings");
+    assert_eq!(refused(true, &codes, &low), "node_spacings");
+    // Full storage with no spacings in the content stores none; compact stores none either way.
+    let none =
+        aligned_copy(&encode_map_content(&content(&pos, &colors, d), Storage::FULL).unwrap());
+    assert!(!MapView::open(&none).unwrap().has_spacings());
+    let compact = aligned_copy(
+        &encode_map_content(
+            &MapContent {
+                spacings: &spacings,
+                ..content(&pos, &colors, d)
+            },
+            Storage::COMPACT,
+        )
+        .unwrap(),
+    );
+    assert!(!MapView::open(&compact).unwrap().has_spacings());
 }

@@ -48,9 +48,19 @@ use crate::stack::Stack;
 use crate::MAX_DIM;
 use otbake_formats::tree::Node;
 
-/// A density-adaptive kernel: point `i`'s Gaussian has `σ_i = clamp(scale · s_i, min_sigma,
-/// max_sigma)`, with `s_i` the blended local spacing of the points around it (see the module docs
-/// of `adaptive.rs`, shown at [`Blend::point_adaptive`]).
+/// A density-adaptive kernel for [`Blend::point_adaptive`]: point `i` of a blend with weights `w`
+/// carries the truncated Gaussian of width
+///
+/// ```text
+/// σ_i = clamp(scale · s_i, min_sigma, max_sigma),   s_i = Σ_k w_k · spacing_k[i]
+/// ```
+///
+/// where `spacing_k[i]` is the local spacing of map `k`'s points around its point `i`
+/// (≈ `(n ρ)^(−1/d)`, stored by the baker, [`otbake_formats::spacing`]). At weights `(1, 0, …)`
+/// that is the spacing of the input's own samples, whatever solver ordered them; between inputs the
+/// linear blend never exceeds the blend's true spacing for transport maps with symmetric positive
+/// semi-definite Jacobians (Minkowski's determinant inequality), so it never blurs more than the
+/// inputs' own kernels would.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AdaptiveKernel {
     /// Bandwidth per unit of spacing. About 2 lets each kernel cover some hundred points in 3D

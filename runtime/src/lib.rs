@@ -12,6 +12,12 @@
 //! and region queries ([`Prepared::point_grid`], [`Prepared::splat_region`]) evaluate a whole box of
 //! grid cells in one traversal, so a renderer can hand bands or tiles to its own threads.
 //!
+//! [`Blend::point_adaptive`] reconstructs with a density-adaptive kernel instead
+//! ([`AdaptiveKernel`]): every point's Gaussian is as wide as the blend's local spacing around it
+//! (per-point spacings the baker stores in every map, blended linearly), so a narrow peak keeps its
+//! height and a query costs about the same wherever it lands; [`Blend::bandwidth`] gives a point's
+//! width, so that a sample plus noise of that width draws exactly from the adaptive density.
+//!
 //! Point queries and point grids are exact; a splat weighs each point by a product of per-axis
 //! Gaussian factors, which equals the point query at each cell center within the tolerance
 //! [`SPLAT_TERM_TOLERANCE`] states (see [`Blend::splat`]).

@@ -455,7 +455,11 @@ fn extreme_values_never_panic() {
         composite: 0,
         mean_mass: f32::MAX,
         wrap: 0,
-        storage: otbake_formats::storage::Storage::FULL.to_codes(),
+        storage: otbake_formats::storage::Storage {
+            spacings: false,
+            ..otbake_formats::storage::Storage::FULL
+        }
+        .to_codes(),
         bounds: &bounds,
         color_range: &[],
         positions: &bytes(&pos),

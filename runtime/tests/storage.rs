@@ -429,8 +429,8 @@ fn range_queries_without_node_color_sums_are_errors() {
 }
 
 /// Archive sizes follow the layout: compact 2D with color takes 2 + 3 bytes per point plus
-/// 8 + 12 bytes per internal node; full takes 8 + 12 and 16 + 12; spacings (every fixture stores
-/// them) add one byte per point and one per internal node.
+/// 8 + 12 bytes per internal node; full takes 8 + 12 and 16 + 12, and its spacings one byte per
+/// point and one per internal node (compact stores none).
 #[test]
 fn archive_sizes_follow_the_layout() {
     let n = 4096usize;
@@ -439,7 +439,7 @@ fn archive_sizes_follow_the_layout() {
     let size = |s: Storage| fixture_with(1, n, 2, leaf, 1, [1; 32], s).maps[0].len();
     let overhead = 512;
     let compact = size(Storage::COMPACT);
-    let bulk = n * (2 + 3 + 1) + internal * (8 + 12 + 1);
+    let bulk = n * (2 + 3) + internal * (8 + 12);
     assert!(
         compact >= bulk && compact <= bulk + overhead,
         "{compact} vs {bulk}"
@@ -452,6 +452,15 @@ fn archive_sizes_follow_the_layout() {
         node_colors: false,
         ..Storage::COMPACT
     });
-    let bulk = n * (2 + 1) + internal * (8 + 1);
+    let bulk = n * 2 + internal * 8;
     assert!(density_only >= bulk && density_only <= bulk + overhead);
+    let spaced = size(Storage {
+        spacings: true,
+        ..Storage::COMPACT
+    });
+    let bulk = n * (2 + 3 + 1) + internal * (8 + 12 + 1);
+    assert!(
+        spaced >= bulk && spaced <= bulk + overhead,
+        "{spaced} vs {bulk}"
+    );
 }

@@ -509,4 +509,38 @@ fn bad_brdf_inputs_are_clear_errors() {
     write_manifest(&dir, "c.toml", &body.replace("short.binary", "c.brdf"));
     let e = otbake_err(&dir, &["bake", "c.toml"]);
     assert!(e.contains("c.brdf:3:") && e.contains("wavelength"), "{e}");
+
+    // Compact maps store no spacings: the default (adaptive) kernel says what to do.
+    let compact = body.replace("short.binary", "ok.binary") + "[storage]\npreset = \"compact\"\n";
+    write_manifest(&dir, "compact.toml", &compact);
+    let e = otbake_err(
+        &dir,
+        &[
+            "brdf-slice",
+            "compact.toml",
+            "--weights",
+            "1",
+            "--size",
+            "8",
+            "-o",
+            "s.png",
+        ],
+    );
+    assert!(e.contains("no spacings") && e.contains("--sigma"), "{e}");
+    let ok = otbake_ok(
+        &dir,
+        &[
+            "brdf-slice",
+            "compact.toml",
+            "--weights",
+            "1",
+            "--size",
+            "8",
+            "--sigma",
+            "0.1",
+            "-o",
+            "s.png",
+        ],
+    );
+    assert!(ok.status.success());
 }

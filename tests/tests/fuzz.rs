@@ -148,6 +148,7 @@ fn write_corpus_when_asked() {
             node_boxes: Precision::F32,
             colors: Some(Precision::U16),
             node_colors: false,
+            spacings: true,
         },
     );
     synthetic(

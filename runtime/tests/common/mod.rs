@@ -38,27 +38,33 @@ pub struct Fixture {
 }
 
 /// Storages property tests run over: full, compact, and mixes of every precision (all keeping
-/// node color sums, so every query answers).
+/// node color sums and spacings, so every query answers).
 pub const STORAGES: [Storage; 5] = [
     Storage::FULL,
-    Storage::COMPACT,
+    Storage {
+        spacings: true,
+        ..Storage::COMPACT
+    },
     Storage {
         positions: Precision::U16,
         node_boxes: Precision::U16,
         colors: Some(Precision::U16),
         node_colors: true,
+        spacings: true,
     },
     Storage {
         positions: Precision::U8,
         node_boxes: Precision::F32,
         colors: Some(Precision::F32),
         node_colors: true,
+        spacings: true,
     },
     Storage {
         positions: Precision::F32,
         node_boxes: Precision::U16,
         colors: Some(Precision::U8),
         node_colors: true,
+        spacings: true,
     },
 ];
 
