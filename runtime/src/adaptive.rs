@@ -24,7 +24,8 @@
 //! lobes keep their height, and a query in a dense region costs what one in a sparse region does.
 //!
 //! Why a linear blend of the spacings: at weights `(1, 0, …)` it is exactly the spacing of that
-//! input's samples, whatever solver ordered them; and between inputs, for transport maps with
+//! map's own points (for a one-to-one map, the input's samples, in whatever order the solver put
+//! them); and between inputs, for transport maps with
 //! symmetric positive semi-definite Jacobians `J_k` (gradients of convex potentials, as optimal
 //! maps are), the blend's true spacing is the proxy's times `det(Σ w_k J_k)^(1/d)`, which by
 //! Minkowski's determinant inequality is at least `Σ w_k det(J_k)^(1/d)`: the linear blend never
@@ -57,7 +58,8 @@ use otbake_formats::tree::Node;
 ///
 /// where `spacing_k[i]` is the local spacing of map `k`'s points around its point `i`
 /// (≈ `(n ρ)^(−1/d)`, stored by the baker, [`otbake_formats::spacing`]). At weights `(1, 0, …)`
-/// that is the spacing of the input's own samples, whatever solver ordered them; between inputs the
+/// that is the spacing of the map's own points (a one-to-one map's are the input's samples, in any
+/// order); between inputs the
 /// linear blend never exceeds the blend's true spacing for transport maps with symmetric positive
 /// semi-definite Jacobians (Minkowski's determinant inequality), so it never blurs more than the
 /// inputs' own kernels would.
