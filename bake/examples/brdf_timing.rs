@@ -1,43 +1,56 @@
-//! Times BRDF blend evaluation and importance sampling per call, single-threaded.
+//! Times BRDF blend evaluation and importance sampling per call, single-threaded, with the fixed
+//! kernel and the density-adaptive one in the same run.
 //!
 //! ```sh
-//! cargo run --release --example brdf_timing -- manifests/brdfs.toml [CALLS] [SIGMA]
+//! cargo run --release --example brdf_timing -- manifests/brdfs.toml [CALLS] [SIGMA] [SCALE] [ROUNDS] [MAX_SIGMA]
 //! ```
 //! Bakes what is missing first. Uses equal weights over all inputs; evaluates CALLS (default 100000)
-//! uniformly random direction pairs and draws CALLS samples (each with its pdf, one point query),
-//! and reports the mean time per call of each, plus `Blend::sample` alone.
+//! uniformly random direction pairs and draws CALLS samples (each with its pdf), and reports the
+//! mean time per call of each, for the fixed kernel of width SIGMA (default 0.02) and the adaptive
+//! kernel SCALE spacings wide (default 2, widths up to MAX_SIGMA, default 0.05), plus
+//! `Blend::sample` alone. ROUNDS (default 2) repeats
+//! the fixed/adaptive pair, alternating, so that load from other processes hits both alike.
 
 use otbake::bake::{bake, BakeOptions};
 use otbake::brdf::direction;
-use otbake::brdf::eval::{BrdfBlend, DEFAULT_SIGMA};
+use otbake::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
 use otbake::manifest::Manifest;
 use otbake::render::Archives;
+use otbake_runtime::{AdaptiveKernel, Kernel};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let path = args
-        .get(1)
-        .map(String::as_str)
-        .unwrap_or("manifests/brdfs.toml");
-    let calls: u32 = args
-        .get(2)
-        .map(|r| r.parse())
+    let arg = |i: usize| args.get(i).map(String::as_str);
+    let path = arg(1).unwrap_or("manifests/brdfs.toml");
+    let calls: u32 = arg(2).map(str::parse).transpose()?.unwrap_or(100_000);
+    let sigma: f32 = arg(3).map(str::parse).transpose()?.unwrap_or(DEFAULT_SIGMA);
+    let scale: f32 = arg(4)
+        .map(str::parse)
         .transpose()?
-        .unwrap_or(100_000);
-    let sigma: f32 = args
-        .get(3)
-        .map(|r| r.parse())
+        .unwrap_or(DEFAULT_ADAPTIVE.scale);
+    let rounds: u32 = arg(5).map(str::parse).transpose()?.unwrap_or(2);
+    let max_sigma: f32 = arg(6)
+        .map(str::parse)
         .transpose()?
-        .unwrap_or(DEFAULT_SIGMA);
+        .unwrap_or(DEFAULT_ADAPTIVE.max_sigma);
     let m = Manifest::load(std::path::Path::new(path))?;
     bake(&m, &BakeOptions::default())?;
     let archives = Archives::load(&m)?;
     let maps = archives.maps()?;
-    let b = BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+    let kernels = [
+        ("fixed", BrdfKernel::Fixed(Kernel { sigma })),
+        (
+            "adaptive",
+            BrdfKernel::Adaptive(AdaptiveKernel {
+                scale,
+                max_sigma,
+                ..DEFAULT_ADAPTIVE
+            }),
+        ),
+    ];
     let k = maps.len();
     let w = vec![1.0 / k as f32; k];
-    let n = b.blend.n();
     // A fixed low-discrepancy sequence of direction pairs (golden-ratio steps).
     let frac = |x: f64| x - x.floor();
     let pair = |i: u32| {
@@ -49,33 +62,46 @@ fn main() -> anyhow::Result<()> {
             direction(to, 2.0 * std::f64::consts::PI * frac(i * 0.618_034)),
         )
     };
+    let index = |i: u32, n: u32| (i.wrapping_mul(2_654_435_761)) % n;
     let mut sink = 0.0f64;
-    let t = Instant::now();
-    for i in 0..calls {
-        let (wi, wo) = pair(i);
-        sink += f64::from(b.eval(&w, wi, wo)?[1]);
+    for round in 0..rounds {
+        for (name, kernel) in kernels {
+            let b = BrdfBlend::with_kernel(archives.proxy()?, &maps, kernel)?;
+            let n = b.blend.n();
+            let t = Instant::now();
+            for i in 0..calls {
+                let (wi, wo) = pair(i);
+                sink += f64::from(b.eval(&w, wi, wo)?[1]);
+            }
+            let eval = t.elapsed().as_secs_f64() / f64::from(calls);
+            let t = Instant::now();
+            let mut failed = 0;
+            for i in 0..calls {
+                let xi = [
+                    0.3,
+                    0.7,
+                    frac(f64::from(i) * 0.618_034),
+                    frac(f64::from(i) * 0.754_877_666),
+                    frac(f64::from(i) * 0.569_840_291),
+                ];
+                let s = b.sample(&w, index(i, n), xi)?;
+                failed += u32::from(s.pdf == 0.0);
+                sink += s.pdf;
+            }
+            let sample = t.elapsed().as_secs_f64() / f64::from(calls);
+            let t = Instant::now();
+            for i in 0..calls {
+                sink += f64::from(b.blend.sample(&w, index(i, n))?.position[0]);
+            }
+            let raw = t.elapsed().as_secs_f64() / f64::from(calls);
+            println!(
+                "round {round} {name:>8} (k = {k}, n = {n}, {kernel:?}): eval {:.2} us/call, sample + pdf {:.2} us/call ({failed} failed), Blend::sample alone {:.3} us/call",
+                eval * 1e6,
+                sample * 1e6,
+                raw * 1e6
+            );
+        }
     }
-    let eval = t.elapsed().as_secs_f64() / f64::from(calls);
-    let t = Instant::now();
-    for i in 0..calls {
-        let s = b.sample(&w, (i.wrapping_mul(2_654_435_761)) % n, [0.3, 0.7])?;
-        sink += s.pdf;
-    }
-    let sample = t.elapsed().as_secs_f64() / f64::from(calls);
-    let t = Instant::now();
-    for i in 0..calls {
-        sink += f64::from(
-            b.blend
-                .sample(&w, (i.wrapping_mul(2_654_435_761)) % n)?
-                .position[0],
-        );
-    }
-    let raw = t.elapsed().as_secs_f64() / f64::from(calls);
-    println!(
-        "k = {k}, n = {n}, sigma = {sigma}: eval {:.2} us/call, sample + pdf {:.2} us/call, Blend::sample alone {:.3} us/call (checksum {sink:.3})",
-        eval * 1e6,
-        sample * 1e6,
-        raw * 1e6
-    );
+    println!("checksum {sink:.3}");
     Ok(())
 }

@@ -33,6 +33,8 @@ struct Content {
     wrap: otbake_formats::Wrap,
     positions: Vec<f32>,
     colors: Vec<f32>,
+    /// Decoded spacings (re-encoding their decoded values keeps the codes).
+    spacings: Vec<f32>,
 }
 
 fn content(m: &Map<'_>) -> Content {
@@ -41,6 +43,11 @@ fn content(m: &Map<'_>) -> Content {
     v.for_each_position(|j, x| positions[j] = x);
     let mut colors = vec![0.0f32; if m.has_color() { m.n() as usize * 3 } else { 0 }];
     v.for_each_color(|j, x| colors[j] = x);
+    let spacings = if v.has_spacings() {
+        (0..m.n() as usize).map(|i| v.spacing(i)).collect()
+    } else {
+        Vec::new()
+    };
     let a = m.archived();
     Content {
         dim: m.dim(),
@@ -52,6 +59,7 @@ fn content(m: &Map<'_>) -> Content {
         wrap: m.wrap(),
         positions,
         colors,
+        spacings,
     }
 }
 
@@ -67,6 +75,7 @@ fn encode(c: &Content, s: Storage) -> AlignedVec<16> {
             wrap: c.wrap,
             positions: &c.positions,
             colors: &c.colors,
+            spacings: &c.spacings,
             solver_report: "",
             transport_cost: 0.0,
         },

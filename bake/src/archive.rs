@@ -72,6 +72,8 @@ pub struct MapData {
     pub positions: Vec<f32>,
     /// `n * 3` color ratios or empty.
     pub colors: Vec<f32>,
+    /// `n` local spacings of the mapped points ([`crate::spacing`]).
+    pub spacings: Vec<f32>,
     /// Solver report line.
     pub solver_report: String,
     /// Mean squared displacement.
@@ -95,6 +97,7 @@ impl MapData {
                 wrap: self.wrap,
                 positions: &self.positions,
                 colors: &self.colors,
+                spacings: &self.spacings,
                 solver_report: &self.solver_report,
                 transport_cost: self.transport_cost,
             },

@@ -207,6 +207,7 @@ pub fn map_key(
     input_identity(&mut k, spec, index)?;
     k.field("solver", m.solver.fingerprint().as_bytes());
     k.field("storage", &m.storage.to_codes());
+    k.field("spacing", crate::spacing::RULE.as_bytes());
     Ok(k.finish())
 }
 
@@ -610,6 +611,11 @@ fn build_map(
             })
             .collect()
     };
+    let spacings = if m.storage.spacings {
+        crate::spacing::spacings(&positions, dim, proxy.wrap)
+    } else {
+        Vec::new()
+    };
     Ok(MapData {
         key,
         proxy_key: proxy.key,
@@ -620,6 +626,7 @@ fn build_map(
         wrap: proxy.wrap,
         positions,
         colors,
+        spacings,
         solver_report,
         transport_cost,
         storage: m.storage,

@@ -62,11 +62,12 @@ pub fn describe(bytes: &[u8]) -> String {
                 s += &format!("transport cost {:.6e}\n", m.transport_cost.to_native());
                 s += &format!("storage        {}\n", describe_storage(&view.storage()));
                 s += &format!(
-                    "sizes          positions={} B colors={} B node_boxes={} B node_colors={} B\n",
+                    "sizes          positions={} B colors={} B node_boxes={} B node_colors={} B spacings={} B\n",
                     m.positions.len(),
                     m.colors.len(),
                     m.node_boxes.len(),
-                    m.node_colors.len() * 4
+                    m.node_colors.len() * 4,
+                    m.spacings.len() + m.node_spacings.len()
                 );
                 let d = view.dim();
                 let pe = view.max_position_error();
@@ -87,14 +88,16 @@ pub fn describe(bytes: &[u8]) -> String {
     s + &format!("payload offset {HEADER_LEN}\n")
 }
 
-/// `positions=u8 node_boxes=u16 colors=u8 node_colors=yes`.
+/// `positions=u8 node_boxes=u16 colors=u8 node_colors=yes spacings=no`.
 pub fn describe_storage(s: &otbake_formats::storage::Storage) -> String {
+    let yes = |b: bool| if b { "yes" } else { "no" };
     format!(
-        "positions={} node_boxes={} colors={} node_colors={}",
+        "positions={} node_boxes={} colors={} node_colors={} spacings={}",
         s.positions.name(),
         s.node_boxes.name(),
         s.colors.map_or("none", |p| p.name()),
-        if s.node_colors { "yes" } else { "no" }
+        yes(s.node_colors),
+        yes(s.spacings)
     )
 }
 

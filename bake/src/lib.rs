@@ -27,6 +27,7 @@ pub mod render;
 pub mod sample;
 pub mod seam;
 pub mod solve;
+pub mod spacing;
 pub mod store;
 pub mod texture;
 pub mod tree;

@@ -187,9 +187,13 @@ enum Command {
         /// Image side in pixels.
         #[arg(long, default_value_t = 256)]
         size: usize,
-        /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
-        sigma: f32,
+        /// A fixed kernel of this standard deviation in unit-cube units (e.g. 0.02), instead of
+        /// the default density-adaptive kernel.
+        #[arg(long, conflicts_with = "scale")]
+        sigma: Option<f32>,
+        /// Width of the adaptive kernel in local spacings of the blend.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        scale: f32,
         /// Exposure (default: 99th percentile of the disk's luminance → 1).
         #[arg(long)]
         exposure: Option<f32>,
@@ -207,9 +211,13 @@ enum Command {
         /// Sphere diameter in pixels.
         #[arg(long, default_value_t = 64)]
         size: usize,
-        /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
-        sigma: f32,
+        /// A fixed kernel of this standard deviation in unit-cube units (e.g. 0.02), instead of
+        /// the default density-adaptive kernel.
+        #[arg(long, conflicts_with = "scale")]
+        sigma: Option<f32>,
+        /// Width of the adaptive kernel in local spacings of the blend.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        scale: f32,
         /// Output image (.png or .exr).
         #[arg(short, long)]
         output: PathBuf,
@@ -226,9 +234,13 @@ enum Command {
             allow_hyphen_values = true
         )]
         weights: Vec<f32>,
-        /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_SIGMA)]
-        sigma: f32,
+        /// A fixed kernel of this standard deviation in unit-cube units (e.g. 0.02), instead of
+        /// the default density-adaptive kernel.
+        #[arg(long, conflicts_with = "scale")]
+        sigma: Option<f32>,
+        /// Width of the adaptive kernel in local spacings of the blend.
+        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        scale: f32,
         /// Output MERL file (.binary).
         #[arg(short, long)]
         output: PathBuf,
@@ -624,6 +636,7 @@ fn run(cli: Cli) -> Result<()> {
             theta_i,
             size,
             sigma,
+            scale,
             exposure,
             output,
         } => {
@@ -634,7 +647,7 @@ fn run(cli: Cli) -> Result<()> {
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
-            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             let img =
                 otbake::brdf::render::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
             write_image(&output, &img)?;
@@ -644,6 +657,7 @@ fn run(cli: Cli) -> Result<()> {
             steps,
             size,
             sigma,
+            scale,
             output,
         } => {
             if !(2..=4096).contains(&size) {
@@ -652,7 +666,7 @@ fn run(cli: Cli) -> Result<()> {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
-            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             let img = otbake::brdf::render::spheres(&b, steps, size, &Default::default())
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             write_image(&output, &img)?;
@@ -661,13 +675,14 @@ fn run(cli: Cli) -> Result<()> {
             manifest,
             weights,
             sigma,
+            scale,
             output,
         } => {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
-            let b = otbake::brdf::eval::BrdfBlend::new(archives.proxy()?, &maps, sigma)?;
+            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             otbake::brdf::render::export_merl(&b, &weights)?.write(&output)?;
         }
         Command::Volume {
@@ -781,4 +796,34 @@ fn run(cli: Cli) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The BRDF commands' blend: a fixed kernel if `--sigma` is given, else the adaptive one `--scale`
+/// spacings wide (which needs maps baked with spacings).
+fn brdf_blend<'a, 'm>(
+    proxy: otbake_runtime::Proxy<'a>,
+    maps: &'m [otbake_runtime::Map<'a>],
+    sigma: Option<f32>,
+    scale: f32,
+) -> Result<otbake::brdf::eval::BrdfBlend<'a, 'm>> {
+    use otbake::brdf::eval::{BrdfBlend, BrdfBlendError, BrdfKernel, DEFAULT_ADAPTIVE};
+    let kernel = match sigma {
+        Some(sigma) => BrdfKernel::Fixed(otbake_runtime::Kernel { sigma }),
+        None => BrdfKernel::Adaptive(otbake_runtime::AdaptiveKernel {
+            scale,
+            ..DEFAULT_ADAPTIVE
+        }),
+    };
+    match BrdfBlend::with_kernel(proxy, maps, kernel) {
+        Err(BrdfBlendError::Runtime(otbake_runtime::Error::MissingAttribute {
+            map,
+            attribute: "spacings",
+        })) => bail!(
+            "map {map} stores no spacings, which the default (density-adaptive) kernel needs: rebake with `spacings = true` in `[storage]`, or pass --sigma 0.02 for a fixed kernel"
+        ),
+        Err(BrdfBlendError::Runtime(otbake_runtime::Error::BadSigma)) => bail!(
+            "--sigma must be a positive number (e.g. 0.02) and --scale a positive number of spacings (e.g. 2)"
+        ),
+        other => Ok(other?),
+    }
 }

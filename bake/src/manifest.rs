@@ -33,11 +33,14 @@
 //! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
 //!
 //! [storage]                     # optional: what every map archive stores, how precisely
-//! preset = "compact"            # full (default: all f32) | compact (u8/u16/u8, node colors kept)
+//! preset = "compact"            # full (default: all f32, spacings) | compact (u8/u16/u8, node
+//!                               # colors kept, no spacings)
 //! positions = "u8"              # f32 | u16 | u8 (on the box of each leaf's parent)
 //! node_boxes = "u16"            # f32 | u16 (on the map's bounds, rounded outward)
 //! colors = "u8"                 # f32 | u16 | u8 | none (density-only scenes)
 //! node_colors = true            # node color sums, for range queries of color (LOD)
+//! spacings = true               # per-point spacings, for density-adaptive queries (BRDF blends
+//!                               # evaluate with them by default); 1.1 bytes per point
 //!
 //! [mesh]                        # optional; for .obj inputs (see volume::voxelize)
 //! resolution = 128              # grid cells per axis (default 128)
@@ -713,6 +716,9 @@ impl Manifest {
                     Some(nc) => s.node_colors = *nc.get_ref(),
                     None => {}
                 }
+                if let Some(sp) = st.spacings {
+                    s.spacings = sp;
+                }
                 s.for_input(s.colors.is_some())
             }
         };
@@ -759,6 +765,7 @@ struct RawStorage {
     node_boxes: Option<RawBoxes>,
     colors: Option<RawColors>,
     node_colors: Option<Spanned<bool>>,
+    spacings: Option<bool>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -1010,6 +1017,18 @@ density = "inverted"
                 node_boxes: Precision::U16,
                 colors: None,
                 node_colors: false,
+                spacings: false,
+            }
+        );
+        let m = manifest(&format!(
+            "{GOOD}[storage]\npreset = \"compact\"\nspacings = true\n"
+        ))
+        .unwrap();
+        assert_eq!(
+            m.storage,
+            Storage {
+                spacings: true,
+                ..Storage::COMPACT
             }
         );
         let m = manifest(&format!(

@@ -7,7 +7,8 @@
 //!   every node of the implicit tree ([`tree`]);
 //! * a **map archive** ([`map::Map`]) holds, for one input, the image of every proxy sample under the
 //!   optimal-transport map (same order), the box of the mapped points of every internal node,
-//!   per-point color ratios and their per-node sums, and the input's mean mass — each attribute in
+//!   per-point color ratios and their per-node sums, per-point spacings and their per-node maxima
+//!   ([`spacing`]), and the input's mean mass — each attribute in
 //!   full precision or quantized, or left out, as its storage descriptor ([`storage`]) records.
 //!   [`view::MapView`] decodes them whatever their precision.
 //!
@@ -36,6 +37,7 @@ pub mod header;
 pub mod map;
 pub mod open;
 pub mod proxy;
+pub mod spacing;
 pub mod storage;
 pub mod tree;
 pub mod view;
@@ -54,8 +56,9 @@ pub const MAGIC: [u8; 8] = *b"OTBAKE\0\x01";
 ///
 /// History: 1, every map attribute in `f32`, boxes and color sums of every node; 2, a storage
 /// descriptor ([`storage`]) with quantized and optional attributes, boxes and color sums of internal
-/// nodes only; 3, a [`Wrap`] code in proxies and maps (periodic domains for tileable textures).
-pub const FORMAT_VERSION: u32 = 3;
+/// nodes only; 3, a [`Wrap`] code in proxies and maps (periodic domains for tileable textures); 4,
+/// per-point spacing codes and their per-node maxima in maps ([`spacing`], adaptive kernels).
+pub const FORMAT_VERSION: u32 = 4;
 
 /// rkyv format flags the payload is written with, recorded in the header so that a reader built with
 /// other flags refuses the bytes instead of misreading them. Bit 0: little endian, bit 1: 32-bit

@@ -1,19 +1,21 @@
 //! The map archive: one input's optimal-transport image of the proxy.
 //!
-//! Layout (rkyv, [`crate::FORMAT_VERSION`] 3). `I = tree::internal_count(depth) = 2^depth − 1` is
+//! Layout (rkyv, [`crate::FORMAT_VERSION`] 4). `I = tree::internal_count(depth) = 2^depth − 1` is
 //! the number of internal nodes; the element type of each bulk field is given by the storage
 //! descriptor ([`crate::storage`]), and every multi-byte value is little endian:
 //!
 //! | field | length | element |
 //! |---|---|---|
 //! | `wrap` | 4 bytes | [`crate::Wrap`] code: 0 clamp, 1 periodic (positions and boxes are lifts in [`crate::LIFT_MIN`]`..=`[`crate::LIFT_MAX`]) |
-//! | `storage` | 4 bytes | descriptor codes (positions, node boxes, colors, node colors) |
+//! | `storage` | 5 bytes | descriptor codes (positions, node boxes, colors, node colors, spacings) |
 //! | `bounds` | `2·dim` | `f32`: `lo[0..dim]` then `hi[0..dim]` of all mapped points |
 //! | `color_range` | 6, or 0 unless colors are quantized | `f32`: `lo[0..3]` then `hi[0..3]` of the color ratios |
 //! | `positions` | `n·dim` values | `f32`, or a `u16`/`u8` code on the decoded box of the point's leaf's parent |
 //! | `colors` | `n·3` values, or none | `f32`, or a `u16`/`u8` code on `color_range` |
 //! | `node_boxes` | `I·2·dim` values | `f32`, or a `u16` code on `bounds`, rounded outward; `lo` then `hi` per node |
 //! | `node_colors` | `I·3`, or 0 | `f32` sums of the (decoded) colors of each internal node's points |
+//! | `spacings` | `n`, or 0 without spacings | `u8` code ([`crate::spacing`]): the local spacing of the map's points around each point |
+//! | `node_spacings` | `I`, or 0 without spacings | `u8`: the largest spacing code of each internal node's points |
 //!
 //! Leaves have no stored box or color sum: a reader takes the box of a leaf's (decoded) points and
 //! the sum of their colors, which for full-precision maps are exactly the values a stored leaf
@@ -55,7 +57,7 @@ pub struct Map<'a> {
     /// `p + δ` (see [`crate::Wrap`]), not points folded into `[0,1)^d`.
     pub wrap: u32,
     /// [`crate::storage::Storage`] codes: what is stored below, and at which precision.
-    pub storage: [u8; 4],
+    pub storage: [u8; 5],
     /// `2·dim` f32: the box (`lo` then `hi`) of all mapped points; the grid of `u16` node boxes.
     #[rkyv(with = InlineAsBox)]
     pub bounds: &'a [f32],
@@ -75,6 +77,14 @@ pub struct Map<'a> {
     /// take whole nodes from these).
     #[rkyv(with = InlineAsBox)]
     pub node_colors: &'a [f32],
+    /// `n` spacing codes ([`crate::spacing`]), one per point in tree order, or empty: the bandwidths
+    /// of density-adaptive point queries.
+    #[rkyv(with = InlineAsBox)]
+    pub spacings: &'a [u8],
+    /// `I` codes, the largest of `spacings` over each internal node's points (heap order), or empty
+    /// without `spacings`: the bound adaptive queries prune by.
+    #[rkyv(with = InlineAsBox)]
+    pub node_spacings: &'a [u8],
     /// Solver report, human-readable (solver, settings, convergence), for `otbake inspect`.
     #[rkyv(with = InlineAsBox)]
     pub solver_report: &'a str,

@@ -167,6 +167,17 @@ pub fn open_map(bytes: &[u8]) -> Result<&ArchivedMap<'_>, FormatError> {
         }
     }
     check(all_finite(&m.node_colors), "node_colors")?;
+    // Spacings: none, or a code per point and the largest code of each internal node's points.
+    let spaced = storage.spacings;
+    check(m.spacings.len() == if spaced { n } else { 0 }, "spacings")?;
+    check(
+        m.node_spacings.len() == if spaced { internal } else { 0 },
+        "node_spacings",
+    )?;
+    check(
+        !spaced || node_codes_bound(&m.spacings, &m.node_spacings, n as u32, depth),
+        "node_spacings",
+    )?;
     let wrap =
         Wrap::from_code(m.wrap.to_native()).ok_or(FormatError::Inconsistent { field: "wrap" })?;
     if wrap == Wrap::Periodic {
@@ -183,6 +194,26 @@ pub fn open_map(bytes: &[u8]) -> Result<&ArchivedMap<'_>, FormatError> {
         }
     }
     Ok(m)
+}
+
+/// Whether every internal node's code (`nodes`, heap order) is at least its children's: the
+/// internal children's codes, and above the leaves every point code (`points`, tree order) of the
+/// node. Then each node's code bounds every point below it, which adaptive queries prune by.
+fn node_codes_bound(points: &[u8], nodes: &[u8], n: u32, depth: u32) -> bool {
+    let at = |v: &[u8], i: usize| v.get(i).copied();
+    // Internal nodes below the root against their parents.
+    let inner = (1..nodes.len()).all(|j| at(nodes, j) <= at(nodes, (j - 1) / 2));
+    if depth == 0 || !inner {
+        return inner;
+    }
+    let level = depth - 1;
+    (0..1u32 << level).all(|offset| {
+        let node = tree::node_at(n, level, offset);
+        let bound = at(nodes, node.index as usize);
+        points
+            .get(node.range())
+            .is_some_and(|codes| codes.iter().all(|&c| Some(c) <= bound))
+    })
 }
 
 /// Whether every little-endian `f32` of `bytes` satisfies `ok`.

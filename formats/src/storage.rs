@@ -1,7 +1,7 @@
 //! What a map archive stores, and at which precision: the storage descriptor and its quantization.
 //!
-//! A map stores four attributes. Which ones are present and how precisely is recorded in
-//! [`crate::map::Map::storage`], four code bytes a reader checks before touching any bulk data:
+//! A map stores five attributes. Which ones are present and how precisely is recorded in
+//! [`crate::map::Map::storage`], five code bytes a reader checks before touching any bulk data:
 //!
 //! | byte | attribute | codes |
 //! |---|---|---|
@@ -9,6 +9,7 @@
 //! | 1 | `node_boxes` (boxes of the internal tree nodes) | 0 `f32`, 1 `u16` |
 //! | 2 | `colors` (per-point color ratios) | 0 none, 1 `f32`, 2 `u16`, 3 `u8` |
 //! | 3 | `node_colors` (per-node color sums) | 0 absent, 1 present (`f32`; only with colors) |
+//! | 4 | `spacings` (per-point spacings and their node maxima, [`crate::spacing`]) | 0 absent, 1 present (`u8` codes) |
 //!
 //! Multi-byte values are little endian. Only internal nodes (levels `0..depth`) have stored boxes
 //! and color sums; a leaf's box and color sum are derived from its points by the reader, so a
@@ -150,6 +151,9 @@ pub struct Storage {
     pub colors: Option<Precision>,
     /// Per-node color sums (what range queries of color take whole nodes from). Only with colors.
     pub node_colors: bool,
+    /// Per-point spacings and their per-node maxima ([`crate::spacing`]; density-adaptive point
+    /// queries need them): about 1.1 bytes per point.
+    pub spacings: bool,
 }
 
 impl Storage {
@@ -159,19 +163,22 @@ impl Storage {
         node_boxes: Precision::F32,
         colors: Some(Precision::F32),
         node_colors: true,
+        spacings: true,
     };
 
     /// The small form: `u8` positions on their leaf parents' boxes, `u16` node boxes, `u8` colors,
-    /// node color sums kept (about 7.6 bytes per point in 2D with color, 4.6 in 3D without).
+    /// node color sums kept, no spacings (about 7.6 bytes per point in 2D with color, 4.6 in 3D
+    /// without; spacings would add 1.1).
     pub const COMPACT: Self = Self {
         positions: Precision::U8,
         node_boxes: Precision::U16,
         colors: Some(Precision::U8),
         node_colors: true,
+        spacings: false,
     };
 
-    /// The four descriptor bytes.
-    pub const fn to_codes(&self) -> [u8; 4] {
+    /// The five descriptor bytes.
+    pub const fn to_codes(&self) -> [u8; 5] {
         [
             self.positions.code(),
             self.node_boxes.code(),
@@ -180,12 +187,13 @@ impl Storage {
                 Some(p) => 1 + p.code(),
             },
             self.node_colors as u8,
+            self.spacings as u8,
         ]
     }
 
     /// Decodes descriptor bytes; `None` for unknown codes, `u8` node boxes, or node color sums
     /// without colors.
-    pub const fn from_codes(codes: [u8; 4]) -> Option<Self> {
+    pub const fn from_codes(codes: [u8; 5]) -> Option<Self> {
         let Some(positions) = Precision::from_code(codes[0]) else {
             return None;
         };
@@ -206,11 +214,17 @@ impl Storage {
             1 if colors.is_some() => true,
             _ => return None,
         };
+        let spacings = match codes[4] {
+            0 => false,
+            1 => true,
+            _ => return None,
+        };
         Some(Self {
             positions,
             node_boxes,
             colors,
             node_colors,
+            spacings,
         })
     }
 
@@ -317,12 +331,13 @@ mod tests {
                     Some(Precision::U16),
                     Some(Precision::U8),
                 ] {
-                    for nc in [false, true] {
+                    for (nc, sp) in [(false, false), (false, true), (true, false), (true, true)] {
                         let s = Storage {
                             positions: p,
                             node_boxes: b,
                             colors: c,
                             node_colors: nc,
+                            spacings: sp,
                         };
                         let back = Storage::from_codes(s.to_codes());
                         if nc && c.is_none() {
@@ -334,10 +349,11 @@ mod tests {
                 }
             }
         }
-        assert_eq!(Storage::from_codes([3, 0, 0, 0]), None);
-        assert_eq!(Storage::from_codes([0, 2, 0, 0]), None);
-        assert_eq!(Storage::from_codes([0, 0, 4, 0]), None);
-        assert_eq!(Storage::from_codes([0, 0, 1, 2]), None);
+        assert_eq!(Storage::from_codes([3, 0, 0, 0, 0]), None);
+        assert_eq!(Storage::from_codes([0, 2, 0, 0, 0]), None);
+        assert_eq!(Storage::from_codes([0, 0, 4, 0, 0]), None);
+        assert_eq!(Storage::from_codes([0, 0, 1, 2, 0]), None);
+        assert_eq!(Storage::from_codes([0, 0, 1, 1, 2]), None);
         assert_eq!(Storage::COMPACT.for_input(false).colors, None);
         assert!(!Storage::COMPACT.for_input(false).node_colors);
     }

@@ -197,9 +197,53 @@ fn sums_rec(values: &[f32], ch: usize, depth: u32, node: Node, out: &mut [f32]) 
     }
 }
 
+/// Fills `out` (`internal_count(depth)` entries) with the largest of `codes` (one per point, tree
+/// order) over each internal node's points (0 for a node without points): the node bounds of
+/// [`crate::spacing`]. One pass over the leaves' parents, then the levels above from the bottom up.
+pub fn fill_internal_max(codes: &[u8], depth: u32, out: &mut [u8]) {
+    let n = codes.len() as u32;
+    assert_eq!(
+        out.len() as u64,
+        internal_count(depth),
+        "node code buffer size"
+    );
+    if depth == 0 {
+        return;
+    }
+    let level = depth - 1;
+    for offset in 0..1u32 << level {
+        let node = node_at(n, level, offset);
+        out[node.index as usize] = codes[node.range()].iter().copied().max().unwrap_or(0);
+    }
+    for j in (0..internal_count(level) as usize).rev() {
+        out[j] = out[2 * j + 1].max(out[2 * j + 2]);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn internal_max_bounds_every_point_below() {
+        for n in [1u32, 2, 7, 33, 100] {
+            for leaf in [1, 3, 8] {
+                let d = depth(n, leaf);
+                let all: [u8; 100] = core::array::from_fn(|i| (i * 37 % 251) as u8);
+                let codes = &all[..n as usize];
+                let mut buf = [0u8; 128];
+                let out = &mut buf[..internal_count(d) as usize];
+                fill_internal_max(codes, d, out);
+                for level in 0..d {
+                    for offset in 0..1u32 << level {
+                        let node = node_at(n, level, offset);
+                        let want = codes[node.range()].iter().copied().max().unwrap_or(0);
+                        assert_eq!(out[node.index as usize], want, "n={n} leaf={leaf}");
+                    }
+                }
+            }
+        }
+    }
 
     fn walk(node: Node, depth: u32, leaf: u32, seen: &mut [u32]) {
         if node.level == depth {

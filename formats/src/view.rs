@@ -162,6 +162,27 @@ impl<'a> MapView<'a> {
         self.storage.node_colors
     }
 
+    /// Whether points carry spacings ([`crate::spacing`]; adaptive point queries need them).
+    pub fn has_spacings(&self) -> bool {
+        self.storage.spacings
+    }
+
+    /// Decoded spacing of point `i` ([`crate::spacing::decode`]; code 0 past the end or without
+    /// spacings).
+    #[inline]
+    pub fn spacing(&self, i: usize) -> f32 {
+        let codes: &[u8] = &self.archived.spacings;
+        crate::spacing::decode(codes.get(i).copied().unwrap_or(0))
+    }
+
+    /// Decoded spacing bound of internal node `index`: at least the spacing of every point below
+    /// it (code 0 past the end or without spacings).
+    #[inline]
+    pub fn internal_spacing(&self, index: usize) -> f32 {
+        let codes: &[u8] = &self.archived.node_spacings;
+        crate::spacing::decode(codes.get(index).copied().unwrap_or(0))
+    }
+
     /// The box of all points (`lo`, `hi`; axes past `dim` are 0).
     pub fn bounds(&self) -> ([f32; MAX_DIM], [f32; MAX_DIM]) {
         (self.bounds.lo, self.bounds.hi)

@@ -7,7 +7,7 @@ use crate::storage::{
     dequantize, quantize_down, quantize_nearest, quantize_up, step, Precision, Storage,
 };
 use crate::view::Grid;
-use crate::{tree, ArchiveKind, COLOR_CHANNELS, MAX_DIM};
+use crate::{spacing, tree, ArchiveKind, COLOR_CHANNELS, MAX_DIM};
 use alloc::vec;
 use alloc::vec::Vec;
 use rkyv::util::AlignedVec;
@@ -72,6 +72,9 @@ pub struct MapContent<'a> {
     pub positions: &'a [f32],
     /// `n·3` color ratios, or empty.
     pub colors: &'a [f32],
+    /// `n` local spacings of the mapped points ([`crate::spacing`]), or empty (then none are stored,
+    /// whatever the storage says).
+    pub spacings: &'a [f32],
     /// Solver report.
     pub solver_report: &'a str,
     /// Mean squared displacement.
@@ -91,16 +94,32 @@ fn push_code(out: &mut Vec<u8>, q: u32, p: Precision) {
 
 /// Archive bytes of a map stored per `storage` (see [`crate::storage`] for the encodings): node
 /// boxes rounded outward, positions and colors rounded to nearest, node color sums of the decoded
-/// colors. Colors are dropped when `storage` stores none (and nothing of color is stored when the
-/// content has none). Deterministic: the same content and storage give the same bytes.
+/// colors, spacings rounded up to their codes and node spacing bounds of those codes. Colors are
+/// dropped when `storage` stores none (and nothing of color is stored when the content has none),
+/// spacings likewise.
+/// Deterministic: the same content and storage give the same bytes.
+///
+/// # Panics
+///
+/// If `spacings` is neither empty nor one per point.
 pub fn encode_map_content(
     c: &MapContent<'_>,
     storage: Storage,
 ) -> Result<AlignedVec<16>, WriteError> {
     let d = c.dim as usize;
     let n = c.positions.len() / d.max(1);
+    assert!(
+        c.spacings.is_empty() || c.spacings.len() == n,
+        "spacings: {} for {n} points",
+        c.spacings.len()
+    );
     let depth = c.depth;
     let storage = storage.for_input(!c.colors.is_empty());
+    // Spacings are stored when the storage asks for them and the content has them.
+    let storage = Storage {
+        spacings: storage.spacings && !c.spacings.is_empty(),
+        ..storage
+    };
     let internal = tree::internal_count(depth) as usize;
 
     // Exact boxes of every node; internal ones are stored, the root's is `bounds`.
@@ -204,6 +223,20 @@ pub fn encode_map_content(
         Vec::new()
     };
 
+    // Spacings rounded up to their codes; each internal node keeps the largest code below it.
+    let spacings: Vec<u8> = if storage.spacings {
+        c.spacings.iter().map(|&s| spacing::encode_up(s)).collect()
+    } else {
+        Vec::new()
+    };
+    let node_spacings = if spacings.is_empty() {
+        Vec::new()
+    } else {
+        let mut out = vec![0u8; internal];
+        tree::fill_internal_max(&spacings, depth, &mut out);
+        out
+    };
+
     encode_map(&Map {
         dim: c.dim,
         n: n as u32,
@@ -220,6 +253,8 @@ pub fn encode_map_content(
         colors: &colors,
         node_boxes: &node_boxes,
         node_colors: &node_colors,
+        spacings: &spacings,
+        node_spacings: &node_spacings,
         solver_report: c.solver_report,
         transport_cost: c.transport_cost,
     })

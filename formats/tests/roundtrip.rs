@@ -22,6 +22,7 @@ fn content<'a>(pos: &'a [f32], colors: &'a [f32], d: u32) -> MapContent<'a> {
         wrap: Wrap::Clamp,
         positions: pos,
         colors,
+        spacings: &[],
         solver_report: "none",
         transport_cost: 0.0,
     }
@@ -114,9 +115,9 @@ fn damage_is_refused_without_panic() {
             );
         }
     }
-    // Archives of the previous format versions (1: f32 only, stored leaf boxes; 2: no wrap code)
-    // are refused.
-    for old in [1u8, 2] {
+    // Archives of the previous format versions (1: f32 only, stored leaf boxes; 2: no wrap code;
+    // 3: no spacings) are refused.
+    for old in [1u8, 2, 3] {
         let mut v = m.clone();
         v[8] = old;
         assert!(matches!(
@@ -149,6 +150,8 @@ fn every_storage_round_trips_within_its_bounds() {
                         node_boxes,
                         colors: c,
                         node_colors: node_colors && c.is_some(),
+                        // The sample content has no spacings, so none are stored.
+                        spacings: false,
                     };
                     let (_, m) = sample_archives_with(s);
                     let m = aligned_copy(&m);
@@ -179,7 +182,7 @@ fn inconsistent_storage_fields_are_refused() {
     let internal = internal_count(d) as usize;
     let boxes = vec![0u8; internal * 4 * 4];
     let posb: Vec<u8> = pos.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let forge = |storage: [u8; 4],
+    let forge = |codes: [u8; 4],
                  bounds: &[f32],
                  color_range: &[f32],
                  positions: &[u8],
@@ -195,13 +198,15 @@ fn inconsistent_storage_fields_are_refused() {
             composite: 0,
             mean_mass: 0.5,
             wrap: 0,
-            storage,
+            storage: [codes[0], codes[1], codes[2], codes[3], 0],
             bounds,
             color_range,
             positions,
             colors,
             node_boxes,
             node_colors,
+            spacings: &[],
+            node_spacings: &[],
             solver_report: "",
             transport_cost: 0.0,
         })
@@ -319,13 +324,15 @@ fn inconsistent_storage_fields_are_refused() {
         composite: 0,
         mean_mass: 0.5,
         wrap: 0,
-        storage: [0, 0, 0, 0],
+        storage: [0, 0, 0, 0, 0],
         bounds: &b,
         color_range: &[],
         positions: &posb,
         colors: &[],
         node_boxes: &wideb,
         node_colors: &[],
+        spacings: &[],
+        node_spacings: &[],
         solver_report: "",
         transport_cost: 0.0,
     })
@@ -340,13 +347,15 @@ fn inconsistent_storage_fields_are_refused() {
         composite: 0,
         mean_mass: 0.5,
         wrap: 0,
-        storage: [0, 0, 0, 0],
+        storage: [0, 0, 0, 0, 0],
         bounds: &wide_bounds,
         color_range: &[],
         positions: &posb,
         colors: &[],
         node_boxes: &boxes,
         node_colors: &[],
+        spacings: &[],
+        node_spacings: &[],
         solver_report: "",
         transport_cost: 0.0,
     })
@@ -454,13 +463,15 @@ fn wrap_codes_and_periodic_ranges_are_checked() {
             composite: 0,
             mean_mass: 0.5,
             wrap,
-            storage: [0, 0, 0, 0],
+            storage: [0, 0, 0, 0, 0],
             bounds: &boxes[..4],
             color_range: &[],
             positions: &posb,
             colors: &[],
             node_boxes: &boxb,
             node_colors: &[],
+            spacings: &[],
+            node_spacings: &[],
             solver_report: "",
             transport_cost: 0.0,
         })
@@ -473,4 +484,124 @@ fn wrap_codes_and_periodic_ranges_are_checked() {
             ),
         }
     }
+}
+
+/// Spacings round trip as codes rounded up, each internal node keeps the largest code below it,
+/// and archives whose spacing fields disagree (lengths, a node below one of its points' or
+/// children's codes) are refused.
+#[test]
+fn spacings_round_trip_and_bad_spacings_are_refused() {
+    use otbake_formats::spacing::{decode, encode_up};
+    use otbake_formats::tree::{node_at, Node};
+    let (pos, colors, d) = sample_data();
+    let spacings: Vec<f32> = (0..37).map(|i| 0.001 * (1.0 + i as f32)).collect();
+    for storage in [
+        Storage::FULL,
+        Storage {
+            spacings: true,
+            ..Storage::COMPACT
+        },
+    ] {
+        let bytes = aligned_copy(
+            &encode_map_content(
+                &MapContent {
+                    spacings: &spacings,
+                    ..content(&pos, &colors, d)
+                },
+                storage,
+            )
+            .unwrap(),
+        );
+        let view = MapView::open(&bytes).unwrap();
+        assert!(view.has_spacings());
+        for (i, &s) in spacings.iter().enumerate() {
+            assert_eq!(view.spacing(i), decode(encode_up(s)));
+            assert!(view.spacing(i) >= s && view.spacing(i) <= s * 1.091);
+        }
+        for level in 0..d {
+            for offset in 0..1u32 << level {
+                let node: Node = node_at(37, level, offset);
+                let most = node.range().map(|i| view.spacing(i)).fold(0.0f32, f32::max);
+                assert_eq!(view.internal_spacing(node.index as usize), most);
+            }
+        }
+    }
+    let plain =
+        aligned_copy(&encode_map_content(&content(&pos, &colors, d), Storage::FULL).unwrap());
+    assert!(!MapView::open(&plain).unwrap().has_spacings());
+
+    // Forged archives: a map of f32 fields with the given spacing fields.
+    let internal = internal_count(d) as usize;
+    let mut boxes = vec![0.0f32; node_count(d) as usize * 4];
+    fill_node_boxes(&pos, 2, d, &mut boxes);
+    let boxb: Vec<u8> = boxes[..internal * 4]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let posb: Vec<u8> = pos.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let forge = |stored: bool, spacings: &[u8], node_spacings: &[u8]| {
+        let bytes = encode_map(&Map {
+            dim: 2,
+            n: 37,
+            depth: d,
+            proxy_key: [7; 32],
+            key: [9; 32],
+            composite: 0,
+            mean_mass: 0.5,
+            wrap: 0,
+            storage: [0, 0, 0, 0, stored as u8],
+            bounds: &[boxes[0], boxes[1], boxes[2], boxes[3]],
+            color_range: &[],
+            positions: &posb,
+            colors: &[],
+            node_boxes: &boxb,
+            node_colors: &[],
+            spacings,
+            node_spacings,
+            solver_report: "",
+            transport_cost: 0.0,
+        })
+        .unwrap();
+        open_map(&bytes).map(|_| ())
+    };
+    let codes: Vec<u8> = (0..37).map(|i| 100 + i as u8).collect();
+    let mut nodes = vec![0u8; internal];
+    otbake_formats::tree::fill_internal_max(&codes, d, &mut nodes);
+    assert!(forge(true, &codes, &nodes).is_ok());
+    assert!(forge(false, &[], &[]).is_ok());
+    let refused = |stored: bool, s: &[u8], ns: &[u8]| match forge(stored, s, ns) {
+        Err(FormatError::Inconsistent { field }) => field,
+        other => panic!("expected a refusal, got {other:?}"),
+    };
+    assert_eq!(refused(true, &codes[..36], &nodes), "spacings");
+    assert_eq!(refused(true, &[], &[]), "spacings");
+    assert_eq!(refused(false, &codes, &nodes), "spacings");
+    assert_eq!(refused(true, &codes, &[]), "node_spacings");
+    assert_eq!(refused(false, &[], &nodes), "node_spacings");
+    assert_eq!(
+        refused(true, &codes, &nodes[..internal - 1]),
+        "node_spacings"
+    );
+    // A point above its leaf's parent's bound, and a node above its parent's.
+    let mut high = codes.clone();
+    high[20] = 255;
+    assert_eq!(refused(true, &high, &nodes), "node_spacings");
+    let mut low = nodes.clone();
+    low[0] -= 1;
+    assert_eq!(refused(true, &codes, &low), "node_spacings");
+    // Full storage with no spacings in the content stores none; compact stores none either way.
+    let none =
+        aligned_copy(&encode_map_content(&content(&pos, &colors, d), Storage::FULL).unwrap());
+    assert!(!MapView::open(&none).unwrap().has_spacings());
+    let compact = aligned_copy(
+        &encode_map_content(
+            &MapContent {
+                spacings: &spacings,
+                ..content(&pos, &colors, d)
+            },
+            Storage::COMPACT,
+        )
+        .unwrap(),
+    );
+    assert!(!MapView::open(&compact).unwrap().has_spacings());
 }

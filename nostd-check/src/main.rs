@@ -6,7 +6,8 @@
 
 use core::panic::PanicInfo;
 use otbake_runtime::{
-    Blend, Error, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget,
+    AdaptiveKernel, Blend, Error, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region,
+    SplatTarget,
 };
 
 /// Archive bytes the optimizer cannot see through (`black_box`), so every query stays linked.
@@ -50,6 +51,13 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
     let p = blend.point(&w, &[0.5, 0.5], kernel)?;
     let r = blend.range(&w, &[0.25, 0.25], &[0.75, 0.75])?;
     let s = blend.sample(&w, 0)?;
+    let adaptive = AdaptiveKernel {
+        scale: 2.0,
+        min_sigma: 0.001,
+        max_sigma: 0.05,
+    };
+    let a = blend.point_adaptive(&w, &[0.5, 0.5], adaptive)?;
+    let bw = blend.bandwidth(&w, 0, adaptive)?;
     let mut density = [0f32; 16];
     let mut color = [0f32; 48];
     blend.splat(
@@ -94,6 +102,8 @@ fn run(bytes: &[u8]) -> Result<f32, Error> {
     )?;
     let q = prep.point(&[0.5, 0.5], kernel)?;
     Ok(p.density
+        + a.density
+        + bw
         + r.mass
         + s.position[0]
         + density[5]

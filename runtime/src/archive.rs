@@ -113,6 +113,12 @@ impl<'a> Map<'a> {
         self.view.has_node_colors()
     }
 
+    /// Whether points carry spacings (density-adaptive queries, [`crate::AdaptiveKernel`], need
+    /// them).
+    pub fn has_spacings(&self) -> bool {
+        self.view.has_spacings()
+    }
+
     /// What the archive stores, and at which precision.
     pub fn storage(&self) -> Storage {
         self.view.storage()

@@ -41,6 +41,8 @@ pub struct Blend<'a, 'm> {
     pub(crate) missing_node_colors: Option<usize>,
     /// The domain: periodic blends answer queries on the torus ([`crate::periodic`]).
     pub(crate) wrap: Wrap,
+    /// The first map without per-point spacings (adaptive queries refuse).
+    pub(crate) missing_spacings: Option<usize>,
 }
 
 /// `Σ w_k v_k` in a fixed order. Every blended quantity goes through this one function.
@@ -147,6 +149,7 @@ impl<'a, 'm> Blend<'a, 'm> {
                 None
             },
             wrap: proxy.wrap(),
+            missing_spacings: maps.iter().position(|m| !m.has_spacings()),
         })
     }
 
@@ -379,8 +382,8 @@ pub(crate) trait Source {
 
 /// A blend and one weight vector (checked by the caller).
 pub(crate) struct Weighted<'s, 'a, 'm> {
-    blend: &'s Blend<'a, 'm>,
-    weights: &'s [f32],
+    pub(crate) blend: &'s Blend<'a, 'm>,
+    pub(crate) weights: &'s [f32],
 }
 
 impl Source for Weighted<'_, '_, '_> {

@@ -60,7 +60,8 @@ pub enum Error {
     },
     /// A coordinate is NaN or infinite.
     BadCoordinate,
-    /// Kernel sigma is not a positive finite number.
+    /// Kernel sigma is not a positive finite number (for an [`crate::AdaptiveKernel`]: `scale` is
+    /// not, or `min_sigma > max_sigma`, or either is not a valid sigma).
     BadSigma,
     /// A splat buffer has the wrong size (or a resolution is 0).
     BufferSize {
@@ -128,7 +129,10 @@ impl fmt::Display for Error {
                 write!(f, "{found} coordinates given for a {expected}-dimensional blend")
             }
             Self::BadCoordinate => write!(f, "a query coordinate is NaN or infinite"),
-            Self::BadSigma => write!(f, "kernel sigma must be a positive finite number"),
+            Self::BadSigma => write!(
+                f,
+                "kernel sigma must be a positive finite number (adaptive kernels: a positive finite scale and 0 < min_sigma <= max_sigma)"
+            ),
             Self::BufferSize { expected, found } => write!(
                 f,
                 "splat buffer holds {found} values but the resolution needs {expected} (resolutions must be >= 1)"

@@ -53,6 +53,18 @@ impl Kernel {
     }
 }
 
+/// `1 / ((2π)^(d/2) · m_d)` for dimension `dim` (1..=4; 0 otherwise): the normalization of a
+/// truncated kernel of width σ is this over `σ^d` (adaptive kernels compute it per point).
+pub(crate) fn unit_norm(dim: usize) -> f32 {
+    match (
+        TWO_PI_POW_HALF_D.get(dim.wrapping_sub(1)),
+        TRUNCATED_MASS.get(dim.wrapping_sub(1)),
+    ) {
+        (Some(a), Some(m)) => 1.0 / (a * m),
+        _ => 0.0,
+    }
+}
+
 impl Prepared {
     /// Unnormalized weight `exp(-r²/2σ²)` of a point at squared distance `r2 <= radius2`.
     #[inline]

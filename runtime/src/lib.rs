@@ -12,6 +12,12 @@
 //! and region queries ([`Prepared::point_grid`], [`Prepared::splat_region`]) evaluate a whole box of
 //! grid cells in one traversal, so a renderer can hand bands or tiles to its own threads.
 //!
+//! [`Blend::point_adaptive`] reconstructs with a density-adaptive kernel instead
+//! ([`AdaptiveKernel`]): every point's Gaussian is as wide as the blend's local spacing around it
+//! (per-point spacings the baker stores in every map, blended linearly), so a narrow peak keeps its
+//! height and a query costs about the same wherever it lands; [`Blend::bandwidth`] gives a point's
+//! width, so that a sample plus noise of that width draws exactly from the adaptive density.
+//!
 //! Point queries and point grids are exact; a splat weighs each point by a product of per-axis
 //! Gaussian factors, which equals the point query at each cell center within the tolerance
 //! [`SPLAT_TERM_TOLERANCE`] states (see [`Blend::splat`]).
@@ -37,7 +43,7 @@
 //! #     let map = |pos: &[f32]| {
 //! #         write::encode_map_content(&write::MapContent { dim: 2, depth: d, proxy_key: [1; 32],
 //! #             key: [2; 32], composite: 0, mean_mass: 0.5, wrap: otbake_runtime::Wrap::Clamp,
-//! #             positions: pos, colors: &[],
+//! #             positions: pos, colors: &[], spacings: &[],
 //! #             solver_report: "", transport_cost: 0.0 }, otbake_formats::storage::Storage::FULL).unwrap()
 //! #     };
 //! #     (p, map(&[0.1, 0.1, 0.3, 0.3]), map(&[0.5, 0.5, 0.9, 0.9]))
@@ -72,6 +78,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod adaptive;
 mod archive;
 mod blend;
 mod error;
@@ -88,6 +95,7 @@ mod splat;
 mod splat_region;
 mod stack;
 
+pub use adaptive::AdaptiveKernel;
 pub use archive::{Map, Proxy};
 pub use blend::{Blend, Sample};
 pub use error::Error;

@@ -19,6 +19,7 @@
 //! ([`Error::PeriodicKernel`]), so a query tries at most 11 shifts per axis, nearly all of which
 //! end at the root (in 2D a query usually runs 1 to 4 real traversals).
 
+use crate::adaptive;
 use crate::blend::{Sample, Source};
 use crate::error::Error;
 use crate::kernel::{self, Kernel};
@@ -243,6 +244,34 @@ pub(crate) fn point(
         point::accumulate(&Shifted { inner: s, shift }, &qf, kp, &mut sum, &mut csum);
     }
     Ok(point::finish(s, kp, sum, csum))
+}
+
+/// An adaptive point query at `q` (finite) with a checked kernel: the clamped query, or on the
+/// torus the sum over every image of the blend within the largest kernel's reach.
+pub(crate) fn point_adaptive(
+    wrap: Wrap,
+    s: &impl adaptive::Spaced,
+    q: &[f32; MAX_DIM],
+    k: &adaptive::Checked,
+) -> Result<PointValue, Error> {
+    let (mut sum, mut csum) = (0.0f32, [0.0f32; 3]);
+    if wrap == Wrap::Clamp {
+        adaptive::accumulate(s, q, k, &mut sum, &mut csum);
+        return Ok(adaptive::finish(s, sum, csum));
+    }
+    let reach = k.reach();
+    if reach > 1.0 {
+        return Err(Error::PeriodicKernel { radius: reach });
+    }
+    let d = s.dim();
+    let mut qf = [0.0; MAX_DIM];
+    for a in 0..d {
+        qf[a] = fold(q[a]);
+    }
+    for shift in shifts_for(d, root_box(s), &qf, &qf, reach) {
+        adaptive::accumulate(&Shifted { inner: s, shift }, &qf, k, &mut sum, &mut csum);
+    }
+    Ok(adaptive::finish(s, sum, csum))
 }
 
 /// A range query over the closed box [`qlo`, `qhi`] (finite): the clamped query, or on the torus the

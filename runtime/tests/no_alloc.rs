@@ -3,7 +3,9 @@
 
 mod common;
 
-use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget};
+use otbake_runtime::{
+    AdaptiveKernel, Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget,
+};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -83,6 +85,13 @@ fn queries_do_not_allocate() {
             .unwrap()
             .mass;
         acc += blend.sample(&w, q).unwrap().position[0];
+        let ak = AdaptiveKernel {
+            scale: 2.0,
+            min_sigma: 0.002,
+            max_sigma: 0.05,
+        };
+        acc += blend.point_adaptive(&w, &p, ak).unwrap().density;
+        acc += blend.bandwidth(&w, q, ak).unwrap();
         // Errors do not allocate either.
         assert!(blend
             .point(&[0.5, 0.5, 0.5], &p, Kernel { sigma: 0.03 })

@@ -14,8 +14,8 @@ use otbake_formats::tree::{depth, fill_node_boxes, node_count};
 use otbake_formats::write::{encode_map_content, encode_proxy, MapContent};
 use otbake_formats::Wrap;
 use otbake_runtime::{
-    Blend, Error, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region, SplatTarget,
-    MAX_DIM,
+    AdaptiveKernel, Blend, Error, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy,
+    Region, SplatTarget, MAX_DIM,
 };
 use proptest::prelude::*;
 use rkyv::util::AlignedVec;
@@ -88,6 +88,11 @@ fn torus(seed: u64, n: usize, dim: usize, k: usize, storage: Storage, wrap: [u32
             .collect();
         let colors: Vec<f32> = (0..n * 3).map(|_| rng.unit() * 2.0).collect();
         let mean = 0.1 + rng.unit();
+        // Spacings from their own generator (the other streams stay as they were).
+        let mut srng = Rng(seed ^ (0x5EED_0000 + m as u64));
+        let spacings: Vec<f32> = (0..n)
+            .map(|_| 10f32.powf(-2.5 + 2.0 * srng.unit()))
+            .collect();
         t.maps.push(
             encode_map_content(
                 &MapContent {
@@ -100,6 +105,7 @@ fn torus(seed: u64, n: usize, dim: usize, k: usize, storage: Storage, wrap: [u32
                     wrap: Wrap::from_code(wrap[1]).unwrap(),
                     positions: &lifts,
                     colors: &colors,
+                    spacings: &spacings,
                     solver_report: "",
                     transport_cost: 0.0,
                 },
@@ -177,6 +183,35 @@ fn brute_point(pts: &[(Vec<f64>, [f64; 3])], q: &[f64], sigma: f64, mean_mass: f
     out
 }
 
+/// Brute-force adaptive density and color at `q`: every point's own truncated Gaussian (width
+/// `sigmas[i]`, nearest image: every `3σ_i <= 3 · max_sigma < ½` here).
+fn brute_adaptive(
+    pts: &[(Vec<f64>, [f64; 3])],
+    sigmas: &[f32],
+    q: &[f64],
+    mean_mass: f64,
+) -> [f64; 5] {
+    let dim = q.len();
+    let mass = [0.997_300_2, 0.988_891, 0.970_709_1, 0.938_900_5][dim - 1];
+    let mut out = [0.0f64; 5];
+    for ((p, c), &s) in pts.iter().zip(sigmas) {
+        let sigma = f64::from(s);
+        let norm = 1.0
+            / ((2.0 * std::f64::consts::PI).powf(dim as f64 / 2.0) * sigma.powi(dim as i32) * mass)
+            / pts.len() as f64;
+        out[4] = out[4].max(norm);
+        let r2 = torus_d2(p, q);
+        if r2 <= 9.0 * sigma * sigma {
+            let w = (-0.5 * r2 / (sigma * sigma)).exp() * norm;
+            out[0] += w;
+            for a in 0..3 {
+                out[1 + a] += w * c[a] * mean_mass;
+            }
+        }
+    }
+    out
+}
+
 /// Whether `x` lies on the closed arc from `lo` to `hi` of the circle (`hi >= lo`, `hi − lo < 1`).
 fn on_arc(x: f64, lo: f64, hi: f64) -> bool {
     let start = fold(lo);
@@ -221,6 +256,47 @@ fn bits(v: &PointValue) -> [u32; 5] {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// Adaptive point queries on the torus equal brute force: each point's kernel (its own width)
+    /// wraps across the borders, and the node bounds prune every image exactly.
+    #[test]
+    fn adaptive_queries_equal_brute_force_on_the_torus(seed in 0u64..1000, n in 1usize..250,
+                                                       dim in 1usize..=3, k in 1usize..4,
+                                                       st in 0usize..STORAGES.len()) {
+        let t = torus(seed, n, dim, k, STORAGES[st], [1, 1]);
+        let (proxy, maps) = open(&t);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0xADA);
+        let w = weights(&mut rng, k);
+        let ak = AdaptiveKernel { scale: 1.0 + 2.0 * rng.unit(), min_sigma: 0.003, max_sigma: 0.12 };
+        let pts = torus_points(&blend, &w);
+        let sigmas: Vec<f32> = (0..n as u32).map(|i| blend.bandwidth(&w, i, ak).unwrap()).collect();
+        let mean_mass: f64 = w.iter().zip(&t.mean_mass).map(|(a, b)| f64::from(*a * *b)).sum();
+        for _ in 0..12 {
+            let q: Vec<f32> = (0..dim)
+                .map(|_| match rng.next() % 4 {
+                    0 => rng.unit() * 0.04,
+                    1 => 1.0 - rng.unit() * 0.04,
+                    2 => rng.unit(),
+                    _ => rng.unit() * 4.0 - 2.0,
+                })
+                .collect();
+            let qf: Vec<f64> = q.iter().map(|&v| fold(f64::from(v))).collect();
+            let v = blend.point_adaptive(&w, &q, ak).unwrap();
+            let b = brute_adaptive(&pts, &sigmas, &qf, mean_mass);
+            // Cutoffs decided on folded f64 points may differ from the runtime's f32 lifts by
+            // one point's term.
+            let tol = 1e-3 * b[0] + 2e-3 * b[4] + 1e-6;
+            prop_assert!((f64::from(v.density) - b[0]).abs() <= tol, "density at {q:?}: {} vs {}", v.density, b[0]);
+            for a in 0..3 {
+                prop_assert!((f64::from(v.color[a]) - b[1 + a]).abs() <= 3.0 * tol * mean_mass.max(1.0));
+            }
+        }
+        // A kernel reaching past one period is refused.
+        let wide = AdaptiveKernel { max_sigma: 0.34, ..ak };
+        prop_assert_eq!(blend.point_adaptive(&w, &vec![0.5; dim], wide).map(|_| ()),
+                        Err(Error::PeriodicKernel { radius: 3.0 * 0.34 }));
+    }
 
     /// Point queries anywhere, and especially within 3σ of a border, equal brute force over the
     /// folded blended points with the torus distance; range boxes (some crossing a border, some a

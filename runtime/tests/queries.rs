@@ -455,13 +455,19 @@ fn extreme_values_never_panic() {
         composite: 0,
         mean_mass: f32::MAX,
         wrap: 0,
-        storage: otbake_formats::storage::Storage::FULL.to_codes(),
+        storage: otbake_formats::storage::Storage {
+            spacings: false,
+            ..otbake_formats::storage::Storage::FULL
+        }
+        .to_codes(),
         bounds: &bounds,
         color_range: &[],
         positions: &bytes(&pos),
         colors: &bytes(&colors),
         node_boxes: &bytes(&boxes[..internal * 4]),
         node_colors: &sums,
+        spacings: &[],
+        node_spacings: &[],
         solver_report: "",
         transport_cost: 0.0,
     })

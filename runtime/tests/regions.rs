@@ -476,6 +476,7 @@ fn exact_points(pos: &[f32]) -> (rkyv::util::AlignedVec<16>, rkyv::util::Aligned
             wrap: otbake_formats::Wrap::Clamp,
             positions: pos,
             colors: &colors,
+            spacings: &[],
             solver_report: "",
             transport_cost: 0.0,
         },

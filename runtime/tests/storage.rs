@@ -429,7 +429,8 @@ fn range_queries_without_node_color_sums_are_errors() {
 }
 
 /// Archive sizes follow the layout: compact 2D with color takes 2 + 3 bytes per point plus
-/// 8 + 12 bytes per internal node; full takes 8 + 12 and 16 + 12.
+/// 8 + 12 bytes per internal node; full takes 8 + 12 and 16 + 12, and its spacings one byte per
+/// point and one per internal node (compact stores none).
 #[test]
 fn archive_sizes_follow_the_layout() {
     let n = 4096usize;
@@ -444,7 +445,7 @@ fn archive_sizes_follow_the_layout() {
         "{compact} vs {bulk}"
     );
     let full = size(Storage::FULL);
-    let bulk = n * (8 + 12) + internal * (16 + 12);
+    let bulk = n * (8 + 12 + 1) + internal * (16 + 12 + 1);
     assert!(full >= bulk && full <= bulk + overhead, "{full} vs {bulk}");
     let density_only = size(Storage {
         colors: None,
@@ -453,4 +454,13 @@ fn archive_sizes_follow_the_layout() {
     });
     let bulk = n * 2 + internal * 8;
     assert!(density_only >= bulk && density_only <= bulk + overhead);
+    let spaced = size(Storage {
+        spacings: true,
+        ..Storage::COMPACT
+    });
+    let bulk = n * (2 + 3 + 1) + internal * (8 + 12 + 1);
+    assert!(
+        spaced >= bulk && spaced <= bulk + overhead,
+        "{spaced} vs {bulk}"
+    );
 }

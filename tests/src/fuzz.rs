@@ -9,7 +9,9 @@
 use otbake_formats::header::{Header, HEADER_LEN};
 use otbake_formats::write::aligned_copy;
 use otbake_formats::ArchiveKind;
-use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget};
+use otbake_runtime::{
+    AdaptiveKernel, Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget,
+};
 
 /// SplitMix64: tiny, seedable, good enough for choosing mutations.
 pub struct Rng(pub u64);
@@ -153,6 +155,13 @@ pub fn exercise(rng: &mut Rng, proxy: &[u8], maps: &[&[u8]]) -> usize {
             .collect();
         let sigma = [0.01, 0.1, rng.float(), 1e-30, 1e30][rng.below(5)];
         let _ = blend.point(&w, &pt, Kernel { sigma });
+        let adaptive = AdaptiveKernel {
+            scale: [2.0, rng.float(), 1e30][rng.below(3)],
+            min_sigma: [1e-3, rng.float(), 1e-30][rng.below(3)],
+            max_sigma: [0.05, 0.3, rng.float(), 1e30][rng.below(4)],
+        };
+        let _ = blend.point_adaptive(&w, &pt, adaptive);
+        let _ = blend.bandwidth(&w, rng.next_u64() as u32 % (blend.n() + 2), adaptive);
         let lo: Vec<f32> = (0..d).map(|_| rng.float()).collect();
         let hi: Vec<f32> = (0..d).map(|_| rng.float()).collect();
         let _ = blend.range(&w, &lo, &hi);

@@ -5,7 +5,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use otbake::bake::{bake, BakeOptions};
-use otbake::brdf::eval::BrdfBlend;
+use otbake::brdf::eval::{BrdfBlend, BrdfKernel};
 use otbake::brdf::merl::{self, Merl};
 use otbake::brdf::{grid_value, luminance, to_grid, Analytic};
 use otbake::manifest::Manifest;
@@ -110,9 +110,13 @@ fn blend_reproduces_inputs_samples_consistently_and_exports() {
         let n = b.blend.n();
         let mut sum = 0.0;
         for i in 0..n {
+            // The fixed kernel ignores the last three (its samples are the blended points).
             let xi = [
                 (i as f64 * 0.618_034) % 1.0,
                 if i % 2 == 0 { 0.25 } else { 0.75 },
+                0.5,
+                0.5,
+                0.5,
             ];
             let s = b.sample(w, i, xi).unwrap();
             assert!(s.pdf > 0.0, "sample {i} has pdf 0");
@@ -156,6 +160,206 @@ fn blend_reproduces_inputs_samples_consistently_and_exports() {
     }
 }
 
+/// A tiny deterministic generator (SplitMix64) of uniform numbers in [0, 1).
+struct Rng(u64);
+
+impl Rng {
+    fn unit(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The density-adaptive kernel: its estimate is a density of the cube (reflection at the faces
+/// loses no mass), `sample` draws exactly from it (a histogram of samples matches the pdf's cell
+/// integrals, and E[f cos / pdf] is the direct integral), and at weights (1, 0) it reproduces the
+/// input like the fixed kernel.
+#[test]
+fn adaptive_kernel_samples_its_own_pdf() {
+    let (_dir, m) = synthetic("brdf-adaptive", 3000);
+    bake(&m, &BakeOptions::default()).unwrap();
+    let archives = Archives::load(&m).unwrap();
+    let maps = archives.maps().unwrap();
+    // 3000 points in 3D are ~0.07 apart: kernels up to 0.3 wide (the default stops at 0.03, made
+    // for 1M points).
+    let kernel = otbake_runtime::AdaptiveKernel {
+        scale: 2.0,
+        min_sigma: 0.01,
+        max_sigma: 0.3,
+    };
+    let b = BrdfBlend::with_kernel(
+        archives.proxy().unwrap(),
+        &maps,
+        BrdfKernel::Adaptive(kernel),
+    )
+    .unwrap();
+    let mid = |i: usize, cells: usize| (i as f64 + 0.5) / cells as f64;
+    let density_at = |w: &[f32], u: [f64; 3]| {
+        f64::from(
+            b.eval_angles(w, u[0] * FRAC_PI_2, u[1] * FRAC_PI_2, u[2] * PI)
+                .unwrap()
+                .density,
+        )
+    };
+
+    // 1. The inputs at unit weights, as for the fixed kernel.
+    for (w, f) in [([1.0f32, 0.0], RED), ([0.0, 1.0], BLUE)] {
+        let grid = to_grid(Path::new("x"), RES, |a, b, c| f.eval(a, b, c)).unwrap();
+        let mut rel = 0.0;
+        for &(ti, to, pd) in &interior() {
+            let v = b.eval_angles(&w, ti, to, pd).unwrap();
+            rel += (f64::from(v.luminance) / luminance(grid_value(&grid, ti, to, pd)) - 1.0).abs();
+        }
+        rel /= interior().len() as f64;
+        assert!(rel < 0.15, "weights {w:?}: mean relative error {rel}");
+    }
+
+    // 2. The density integrates to 1 over the cube (midpoint rule, 16³).
+    for w in [[0.5f32, 0.5], [1.0, 0.0]] {
+        let c = 16;
+        let total: f64 = (0..c * c * c)
+            .map(|i| {
+                density_at(
+                    &w,
+                    [mid(i % c, c), mid((i / c) % c, c), mid(i / (c * c), c)],
+                )
+            })
+            .sum::<f64>()
+            / (c * c * c) as f64;
+        assert!((total - 1.0).abs() < 0.02, "weights {w:?}: ∫ρ = {total}");
+    }
+
+    // 3. Samples follow the pdf: 8 draws per point, binned on 4³ cells of the cube, against the
+    //    pdf's integral over each cell (midpoint rule, 4³ per cell); and each draw is its point
+    //    plus noise of its point's width: away from the faces (no fold), the mean of |u − y_i|²/σ_i²
+    //    is the second moment of the 3D normal truncated at radius 3. Kernels stop at 0.06 here, so
+    //    that many points lie 3σ from every face.
+    let kernel = otbake_runtime::AdaptiveKernel {
+        max_sigma: 0.06,
+        ..kernel
+    };
+    let narrow = BrdfBlend::with_kernel(
+        archives.proxy().unwrap(),
+        &maps,
+        BrdfKernel::Adaptive(kernel),
+    )
+    .unwrap();
+    let b = &narrow;
+    let density_at = |w: &[f32], u: [f64; 3]| {
+        f64::from(
+            b.eval_angles(w, u[0] * FRAC_PI_2, u[1] * FRAC_PI_2, u[2] * PI)
+                .unwrap()
+                .density,
+        )
+    };
+    let w = [0.5f32, 0.5];
+    let n = b.blend.n();
+    let draws = 8;
+    let cells = 4;
+    let mut counts = vec![0usize; cells * cells * cells];
+    let mut rng = Rng(7);
+    let mut sum = 0.0;
+    let (mut r2_sum, mut r2_count) = (0.0, 0);
+    for i in 0..n {
+        let y = b.blend.sample(&w, i).unwrap().position;
+        let sigma = f64::from(b.blend.bandwidth(&w, i, kernel).unwrap());
+        let inside = (0..3).all(|a| {
+            let y = f64::from(y[a]);
+            y >= 3.0 * sigma && y <= 1.0 - 3.0 * sigma
+        });
+        for _ in 0..draws {
+            let xi = [rng.unit(), rng.unit(), rng.unit(), rng.unit(), rng.unit()];
+            let s = b.sample(&w, i, xi).unwrap();
+            assert!(s.pdf > 0.0, "sample {i} failed or has pdf 0");
+            let p = b.pdf(&w, s.wi, s.wo).unwrap();
+            assert!((p / s.pdf - 1.0).abs() < 1e-3, "{p} vs {}", s.pdf);
+            sum += f64::from(s.luminance) * s.wo[2] / s.pdf;
+            let (ti, to, pd) = otbake::brdf::angles(s.wi, s.wo).unwrap();
+            let u = otbake::brdf::to_unit(ti, to, pd);
+            if inside {
+                let r2: f64 = (0..3).map(|a| f64::from(u[a] - y[a]).powi(2)).sum();
+                assert!(
+                    r2 <= 9.0 * sigma * sigma * (1.0 + 1e-4),
+                    "draw {r2} past 3σ = {}",
+                    3.0 * sigma
+                );
+                r2_sum += r2 / (sigma * sigma);
+                r2_count += 1;
+            }
+            let cell = |v: f32| ((v as f64 * cells as f64) as usize).min(cells - 1);
+            counts[cell(u[0]) + cells * (cell(u[1]) + cells * cell(u[2]))] += 1;
+        }
+    }
+    let total = (n as usize * draws) as f64;
+    let sub = 4;
+    let mut worst = 0.0f64;
+    for (c, &count) in counts.iter().enumerate() {
+        let corner = [c % cells, (c / cells) % cells, c / (cells * cells)];
+        let mut mass = 0.0;
+        for j in 0..sub * sub * sub {
+            let at = |a: usize, k: usize| (corner[a] as f64 + mid(k, sub)) / cells as f64;
+            mass += density_at(
+                &w,
+                [
+                    at(0, j % sub),
+                    at(1, (j / sub) % sub),
+                    at(2, j / (sub * sub)),
+                ],
+            );
+        }
+        let expected = total * mass / (sub * sub * sub * cells * cells * cells) as f64;
+        // Draws of one point are correlated: allow 4 binomial deviations, doubled, and 3% for the
+        // midpoint rule.
+        let dev = (count as f64 - expected).abs() / (8.0 * expected.sqrt() + 0.03 * expected);
+        worst = worst.max(dev);
+        assert!(
+            dev <= 1.0,
+            "cell {corner:?}: {count} samples, pdf says {expected:.1}"
+        );
+    }
+    assert!(worst > 0.0);
+    // E[R²] of the truncated normal: ∫₀³ r⁴ e^(−r²/2) dr / ∫₀³ r² e^(−r²/2) dr (midpoint rule).
+    let moment = |p: i32| {
+        (0..30_000)
+            .map(|j| {
+                let r = (j as f64 + 0.5) * 1e-4;
+                r.powi(p) * (-0.5 * r * r).exp()
+            })
+            .sum::<f64>()
+    };
+    let want = moment(4) / moment(2);
+    let got = r2_sum / f64::from(r2_count);
+    assert!(r2_count > 1000, "{r2_count} interior draws");
+    assert!(
+        (got / want - 1.0).abs() < 0.03,
+        "E[|u − y|²/σ²] = {got}, want {want}"
+    );
+
+    // 4. E[f_Y cos θo / pdf] is the direct integral of the same estimate.
+    let mc = sum / total;
+    let c = 12;
+    let direct = PI.powi(4)
+        * (0..c * c * c)
+            .map(|i| {
+                let (ti, to, pd) = (
+                    mid(i % c, c) * FRAC_PI_2,
+                    mid((i / c) % c, c) * FRAC_PI_2,
+                    mid(i / (c * c), c) * PI,
+                );
+                let v = b.eval_angles(&w, ti, to, pd).unwrap();
+                f64::from(v.luminance) * to.cos() * ti.sin() * to.sin()
+            })
+            .sum::<f64>()
+        / (c * c * c) as f64;
+    assert!(
+        (mc / direct - 1.0).abs() < 0.03,
+        "MC {mc} vs direct {direct}"
+    );
+}
+
 /// MERL → grid keeps reciprocity exactly and the energy within 2% at 24³ (analytic integral as
 /// reference); the nearest-cell MERL lookup is the only approximation.
 #[test]
@@ -195,6 +399,40 @@ fn brdf_commands_write_images_and_merl_files() {
     );
     let img = image::open(dir.join("slice.png")).unwrap();
     assert_eq!((img.width(), img.height()), (32, 32));
+    // Without --sigma: the adaptive kernel, --scale spacings wide.
+    otbake_ok(
+        &dir,
+        &[
+            "brdf-slice",
+            m,
+            "--weights",
+            "0.5,0.5",
+            "--size",
+            "16",
+            "--scale",
+            "3",
+            "-o",
+            "adaptive.png",
+        ],
+    );
+    let img = image::open(dir.join("adaptive.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (16, 16));
+    let e = otbake_err(
+        &dir,
+        &[
+            "brdf-slice",
+            m,
+            "--weights",
+            "1,0",
+            "--sigma",
+            "0.1",
+            "--scale",
+            "2",
+            "-o",
+            "x.png",
+        ],
+    );
+    assert!(e.contains("cannot be used with"), "{e}");
     otbake_ok(
         &dir,
         &[
@@ -271,4 +509,38 @@ fn bad_brdf_inputs_are_clear_errors() {
     write_manifest(&dir, "c.toml", &body.replace("short.binary", "c.brdf"));
     let e = otbake_err(&dir, &["bake", "c.toml"]);
     assert!(e.contains("c.brdf:3:") && e.contains("wavelength"), "{e}");
+
+    // Compact maps store no spacings: the default (adaptive) kernel says what to do.
+    let compact = body.replace("short.binary", "ok.binary") + "[storage]\npreset = \"compact\"\n";
+    write_manifest(&dir, "compact.toml", &compact);
+    let e = otbake_err(
+        &dir,
+        &[
+            "brdf-slice",
+            "compact.toml",
+            "--weights",
+            "1",
+            "--size",
+            "8",
+            "-o",
+            "s.png",
+        ],
+    );
+    assert!(e.contains("no spacings") && e.contains("--sigma"), "{e}");
+    let ok = otbake_ok(
+        &dir,
+        &[
+            "brdf-slice",
+            "compact.toml",
+            "--weights",
+            "1",
+            "--size",
+            "8",
+            "--sigma",
+            "0.1",
+            "-o",
+            "s.png",
+        ],
+    );
+    assert!(ok.status.success());
 }

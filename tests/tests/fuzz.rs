@@ -62,6 +62,10 @@ fn synthetic_in(
         } else {
             vec![]
         };
+        // Spacings over three decades, so adaptive queries see every bandwidth regime.
+        let spacings: Vec<f32> = (0..n)
+            .map(|_| 10f32.powf(-3.0 + 3.0 * unit(&mut rng)))
+            .collect();
         let bytes = write::encode_map_content(
             &write::MapContent {
                 dim: dim as u32,
@@ -73,6 +77,7 @@ fn synthetic_in(
                 wrap,
                 positions: &pos,
                 colors: &colors,
+                spacings: &spacings,
                 solver_report: "fuzz",
                 transport_cost: 0.0,
             },
@@ -143,6 +148,7 @@ fn write_corpus_when_asked() {
             node_boxes: Precision::F32,
             colors: Some(Precision::U16),
             node_colors: false,
+            spacings: true,
         },
     );
     synthetic(

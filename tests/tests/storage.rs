@@ -175,6 +175,7 @@ fn a_manifest_stores_only_what_it_asks_for() {
         node_boxes: Precision::U16,
         colors: Some(Precision::U8),
         node_colors: false,
+        spacings: true,
     };
     assert!(maps
         .iter()
@@ -183,7 +184,7 @@ fn a_manifest_stores_only_what_it_asks_for() {
     let out = otbake_ok(&dir, &["inspect", m.map_archive("duck").to_str().unwrap()]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("positions=u16 node_boxes=u16 colors=u8 node_colors=no")
+        text.contains("positions=u16 node_boxes=u16 colors=u8 node_colors=no spacings=yes")
             && text.contains("node_colors=0 B"),
         "{text}"
     );

@@ -25,13 +25,15 @@
 //! ```
 //!
 //! with `u = u(ωi, ωo)` as above; at weights `(1, 0, …)` this is the input grid's value smoothed
-//! by the query kernel. Why no Jacobian: evaluation — the operation a renderer calls most — then
+//! by the query kernel (see [`eval`] for the two kernels: density-adaptive by default, or fixed). Why no Jacobian: evaluation — the operation a renderer calls most — then
 //! never divides by `sin θ` or `cos θ`, which vanish at the pole and the horizon and would amplify
 //! the kernel estimate's noise there; the paper stores plain luminance too.
 //!
 //! # Importance sampling
 //!
-//! The blend's points (`Blend::sample`) follow `ρ_w`, i.e. `f_Y` in the angle measure. A sample is
+//! The blend's points (`Blend::sample`) follow `ρ_w`, i.e. `f_Y` in the angle measure; with the
+//! adaptive kernel (the default, [`eval`]) a sample is point `i` plus noise of its kernel width,
+//! folded into the cube, which follows the kernel estimate `ρ_w` *exactly*. A sample is
 //! turned into a pair of directions by drawing `φi` uniformly in `[0, 2π)` and the sign of `φd`
 //! with probability 1/2 each. The joint density of `(ωi, ωo)` in the product of solid angles
 //! (`dω = sin θ dθ dφ`) is then

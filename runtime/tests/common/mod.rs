@@ -32,31 +32,39 @@ pub struct Fixture {
     /// Per map: positions and colors, as written.
     pub positions: Vec<Vec<f32>>,
     pub colors: Vec<Vec<f32>>,
+    /// Per map: spacings as written (codes round them up: see `decoded_spacing`).
+    pub spacings: Vec<Vec<f32>>,
     pub mean_mass: Vec<f32>,
 }
 
 /// Storages property tests run over: full, compact, and mixes of every precision (all keeping
-/// node color sums, so every query answers).
+/// node color sums and spacings, so every query answers).
 pub const STORAGES: [Storage; 5] = [
     Storage::FULL,
-    Storage::COMPACT,
+    Storage {
+        spacings: true,
+        ..Storage::COMPACT
+    },
     Storage {
         positions: Precision::U16,
         node_boxes: Precision::U16,
         colors: Some(Precision::U16),
         node_colors: true,
+        spacings: true,
     },
     Storage {
         positions: Precision::U8,
         node_boxes: Precision::F32,
         colors: Some(Precision::F32),
         node_colors: true,
+        spacings: true,
     },
     Storage {
         positions: Precision::F32,
         node_boxes: Precision::U16,
         colors: Some(Precision::U8),
         node_colors: true,
+        spacings: true,
     },
 ];
 
@@ -99,6 +107,7 @@ pub fn fixture_with(
         maps: vec![],
         positions: vec![],
         colors: vec![],
+        spacings: vec![],
         mean_mass: vec![],
     };
     for m in 0..k {
@@ -111,6 +120,12 @@ pub fn fixture_with(
             .collect();
         let colors: Vec<f32> = (0..n * 3).map(|_| rng.unit() * 2.0).collect();
         let mean = 0.1 + rng.unit();
+        // Spacings from their own generator (the other streams stay as they were), over two
+        // decades: adaptive kernels of every width, unrelated to where the points are.
+        let mut srng = Rng(seed ^ (0x5EED_0000 + m as u64));
+        let spacings: Vec<f32> = (0..n)
+            .map(|_| 10f32.powf(-2.5 + 2.0 * srng.unit()))
+            .collect();
         f.maps.push(
             encode_map_content(
                 &MapContent {
@@ -123,6 +138,7 @@ pub fn fixture_with(
                     wrap: otbake_formats::Wrap::Clamp,
                     positions: &pos,
                     colors: &colors,
+                    spacings: &spacings,
                     solver_report: "",
                     transport_cost: 0.0,
                 },
@@ -132,6 +148,7 @@ pub fn fixture_with(
         );
         f.positions.push(pos);
         f.colors.push(colors);
+        f.spacings.push(spacings);
         f.mean_mass.push(mean);
     }
     f
@@ -151,6 +168,16 @@ impl Fixture {
             }
         }
         (p, c)
+    }
+
+    /// Blended spacing of point i as the runtime reads it: Σ w_k decode(code_k[i]) in map order.
+    pub fn blended_spacing(&self, w: &[f32], i: usize) -> f32 {
+        use otbake_formats::spacing::{decode, encode_up};
+        let mut s = 0.0f32;
+        for (k, wk) in w.iter().enumerate() {
+            s += wk * decode(encode_up(self.spacings[k][i]));
+        }
+        s
     }
 
     pub fn mean_mass(&self, w: &[f32]) -> f32 {
