@@ -27,7 +27,13 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
     pub row_ptr: &'a [usize],
     pub col: &'a [u32],
     pub cols: usize,
+    /// The cost of any (row, column) pair.
     pub cost: C,
+    /// The candidates' costs in `col`'s order, if the caller has them (they must equal `cost` up to
+    /// a constant per row, and to far less than the final ε): bids then read them sequentially
+    /// instead of computing each from two positions, one of them a random read. Nearly all of an
+    /// auction's time is these reads (1M 3D points: 15.6M bids over about 68 candidates each).
+    pub pair_cost: Option<&'a [f32]>,
 }
 
 /// Result of [`auction`].
@@ -152,11 +158,27 @@ fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     v: &[f64],
     i: usize,
 ) -> (f64, usize, f64, usize) {
+    let r = graph.row_ptr[i]..graph.row_ptr[i + 1];
+    let cols = &graph.col[r.clone()];
+    match graph.pair_cost {
+        Some(pc) => two_smallest(
+            cols.iter()
+                .zip(&pc[r])
+                .map(|(&j, &c)| (j as usize, f64::from(c) - v[j as usize])),
+        ),
+        None => two_smallest(cols.iter().map(|&j| {
+            let j = j as usize;
+            (j, (graph.cost)(i, j) - v[j])
+        })),
+    }
+}
+
+/// The two smallest values of (column, value) pairs, first wins ties: (u1, j1, u2, j2).
+#[inline]
+fn two_smallest(candidates: impl Iterator<Item = (usize, f64)>) -> (f64, usize, f64, usize) {
     let (mut u1, mut j1) = (f64::INFINITY, usize::MAX);
     let (mut u2, mut j2) = (f64::INFINITY, usize::MAX);
-    for &j in &graph.col[graph.row_ptr[i]..graph.row_ptr[i + 1]] {
-        let j = j as usize;
-        let h = (graph.cost)(i, j) - v[j];
+    for (j, h) in candidates {
         if h < u1 {
             u2 = u1;
             j2 = j1;
@@ -196,6 +218,7 @@ mod tests {
             col: &col,
             cols: n,
             cost,
+            pair_cost: None,
         };
         let mut v = vec![0.0; n];
         let m = auction(&g, &mut v, 0.5, 1e-9, 4.0, 10.0, |_, _, _, _| 0);
@@ -233,6 +256,7 @@ mod tests {
             col: &col,
             cols: 2,
             cost: |_, _| 1.0,
+            pair_cost: None,
         };
         let mut v = vec![0.0; 2];
         let mut asked = Vec::new();
