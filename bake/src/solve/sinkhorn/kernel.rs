@@ -443,6 +443,22 @@ fn search_some<const D: usize>(
         .collect()
 }
 
+/// How a local rebuild chooses what to search again, and when it gives way.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LocalLimits {
+    /// θ: the absolute test of the searches, C − f − g ≤ θε.
+    pub theta: f64,
+    /// Rows and columns that moved more than τε from the reference are searched again.
+    pub tau: f64,
+    /// A whole build instead (`Local::TooMany`) when more than `max_moved` rows or columns moved
+    /// more than `tau_whole`·ε (a loose rebuild, τ above `tau_whole`, gives way when a strict one
+    /// would have to).
+    pub tau_whole: f64,
+    pub max_moved: usize,
+    /// Refusal past this many pairs (`None`, like [`build`]).
+    pub max_pairs: usize,
+}
+
 /// What a local rebuild did.
 pub(super) enum Local {
     /// The new kernel, with the numbers of rows and columns searched again.
@@ -475,21 +491,33 @@ pub(super) fn rebuild_local<const D: usize>(
     f0: &[f64],
     g0: &[f64],
     eps: f64,
-    theta: f64,
-    tau: f64,
+    limits: LocalLimits,
     wrap: Wrap,
-    max_pairs: usize,
-    max_moved: usize,
 ) -> Option<Local> {
     let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
     let (m, nt) = (xs.len(), ys.len());
+    let LocalLimits {
+        theta,
+        tau,
+        tau_whole,
+        max_moved,
+        max_pairs,
+    } = limits;
     let (margin, moved) = (theta * eps, tau * eps);
+    let whole = tau_whole * eps;
+    let too_many = |d: &[f64], d0: &[f64]| {
+        d.par_iter()
+            .zip(d0)
+            .filter(|(x, y)| (*x - *y).abs() > whole)
+            .count()
+            > max_moved
+    };
+    if too_many(g, g0) {
+        return Some(Local::TooMany);
+    }
     let cols: Vec<u32> = (0..nt as u32)
         .filter(|&j| (g[j as usize] - g0[j as usize]).abs() > moved)
         .collect();
-    if cols.len() > max_moved {
-        return Some(Local::TooMany);
-    }
     // Upper bounds of the new row minima over the old pairs.
     let mut f: Vec<f64> = (0..m)
         .into_par_iter()
@@ -516,12 +544,12 @@ pub(super) fn rebuild_local<const D: usize>(
             extra.push((i, j));
         }
     }
+    if too_many(&f, f0) {
+        return Some(Local::TooMany);
+    }
     let rows: Vec<u32> = (0..m as u32)
         .filter(|&i| (f[i as usize] - f0[i as usize]).abs() > moved)
         .collect();
-    if rows.len() > max_moved {
-        return Some(Local::TooMany);
-    }
     // Moved rows: every column with C − g ≤ f + θε, which also gives their exact minimum.
     if !rows.is_empty() {
         let bnd = bounds(tgt, level, g);
@@ -889,11 +917,14 @@ mod tests {
             &whole.f,
             &g0,
             eps,
-            theta,
-            tau,
+            LocalLimits {
+                theta,
+                tau,
+                tau_whole: tau,
+                max_moved: xs.len(),
+                max_pairs: usize::MAX,
+            },
             Wrap::Clamp,
-            usize::MAX,
-            xs.len(),
         ) else {
             panic!("the local rebuild was refused");
         };

@@ -874,15 +874,20 @@ fn iterate<const D: usize>(
                 &st.f0,
                 &st.g0,
                 st.eps,
-                settings.truncate,
-                if mid {
-                    settings.truncate * LOCAL_MOVE_MID
-                } else {
-                    tau
+                kernel::LocalLimits {
+                    theta: settings.truncate,
+                    tau: if mid {
+                        settings.truncate * LOCAL_MOVE_MID
+                    } else {
+                        tau
+                    },
+                    // Whole once a strict local rebuild could not be local any more: the stage's
+                    // end would need that whole build anyway, and it is best done now.
+                    tau_whole: tau,
+                    max_moved: rows.max(ht.levels[st.level].len()) / LOCAL_SHARE,
+                    max_pairs: limit,
                 },
                 wrap,
-                limit,
-                rows.max(ht.levels[st.level].len()) / LOCAL_SHARE,
             );
             let how = match local {
                 Some(kernel::Local::Built(k, r, c)) => {
