@@ -86,7 +86,8 @@ pub struct SinkhornSettings {
     /// points' worth of mass at 250K: the duck sampled with seed 0 then left the auction a row set
     /// its support could not match, whose price war ran out of budget and fell back to the
     /// barycentric map (51 s instead of 10). At 1e-3 every shape and seed measured matched with no
-    /// fallback (BENCHMARKS.md).
+    /// fallback (BENCHMARKS.md). With `map = "assignment"` the final stage goes to at most 1e-3
+    /// whatever this says ([`ASSIGNMENT_TOLERANCE`]).
     pub tolerance: f64,
     /// Iterations allowed per stage. Intermediate stages that hit it go on (the next stage starts
     /// from their potentials, and the report counts them); the final stage must converge.
@@ -204,6 +205,14 @@ pub const DEFAULT_BLUR_SPACING: [f64; 4] = [1.5, 1.5, 1.5, 1.0];
 /// final 1e-3 (measured at 50K: the final stage then needs 60 iterations instead of 536; and 1e-4
 /// before it doubled the 250K iterations without shortening the final stage).
 const STAGE_TOLERANCE: f64 = 0.3;
+
+/// Loosest final marginal error the auction of `map = "assignment"` starts from, whatever
+/// `tolerance` says (so with that map, a looser tolerance only loosens the earlier stages). The
+/// auction starts from the plan's target potential, and a looser plan leaves prices far from the
+/// matching's. Gaussian → Gaussian at 50K with blur_spacing 0.5: tolerance 1e-2 ended Sinkhorn at
+/// 6.9e-3 and took 21 s, nearly all in bids (103 s before the auction read precomputed costs);
+/// clamped to 3e-3, 7.7 s; at 1e-3, 1.8 s.
+const ASSIGNMENT_TOLERANCE: f64 = 1e-3;
 
 /// Solves in the metric of `wrap` (on the torus: costs, kernel bounds and the barycentric map see the
 /// nearest images, and the mapped points are lifts; see [`super::solve_in`]).
@@ -401,7 +410,10 @@ fn run<const D: usize>(
         let t0 = std::time::Instant::now();
         let last = stage + 1 == blurs.len();
         let tol = if last {
-            settings.tolerance
+            match settings.map {
+                MapKind::Assignment => settings.tolerance.min(ASSIGNMENT_TOLERANCE),
+                MapKind::Barycentric => settings.tolerance,
+            }
         } else {
             settings.tolerance * STAGE_TOLERANCE
         };
