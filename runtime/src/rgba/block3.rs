@@ -48,9 +48,6 @@ const MAX_RES: f32 = (1u32 << 20) as f32;
 /// low bits of `v + ROUND` are that integer.
 const ROUND: f32 = 12_582_912.0;
 
-/// The sign bit of an `f32`.
-const SIGN: u32 = 0x8000_0000;
-
 /// The bits of `+∞`: an `f32` whose bits are below it is non-negative (not `−0.0`) and finite.
 const INF: u32 = 0x7F80_0000;
 
@@ -109,14 +106,6 @@ impl Axis {
             ok,
         )
     }
-}
-
-/// All ones if `r2 > r2max` (the cutoff test fails), else 0, for `r2` not NaN: the sign of
-/// `r2max − r2`, which is negative exactly when `r2 > r2max` (a difference of floats is 0 only
-/// for equal ones, and `+0` then).
-#[inline(always)]
-fn dropped(r2max: f32, r2: f32) -> u32 {
-    (((r2max - r2).to_bits() as i32) >> 31) as u32
 }
 
 /// The integer value of `m` (an integer in `[0, 2²²]`), by its bits.
@@ -195,18 +184,21 @@ impl Chunk {
         for (g, &s) in g.as_flattened_mut().iter_mut().zip(sq.as_flattened()) {
             *g = cx.kp.factor(s);
         }
-        // The nine weights of every point, `−0.0` where the cutoff fails, in a vector loop of
-        // their own, so that the cells below stay branch-free (a test next to its cell became a
-        // branch per cell).
+        // The nine weights of every point, `−0.0` where the cutoff fails (`<=`, false for NaN, as
+        // in the reference), in a vector loop of their own: compares and selects, so the cells
+        // below stay branch-free (a test next to its cell became a branch per cell).
         let r2max = cx.kp.radius2;
         for p in 0..N {
             for j in 0..3 {
                 let py = g[3 + j][p] * cx.scale;
                 for i in 0..3 {
                     // Summed in axis order, as `point::point` does.
-                    let drop = dropped(r2max, sq[i][p] + sq[3 + j][p]);
                     let t = g[i][p] * py;
-                    w[3 * j + i][p] = f32::from_bits((t.to_bits() & !drop) | (drop & SIGN));
+                    w[3 * j + i][p] = if sq[i][p] + sq[3 + j][p] <= r2max {
+                        t
+                    } else {
+                        -0.0
+                    };
                 }
             }
         }
