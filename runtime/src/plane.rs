@@ -137,6 +137,7 @@ impl Chunk {
             // Interleaved-RGB lanes: lane `l` is cell `l / 3`, channel `l % 3`.
             let s0c: [f32; 3 * B] = core::array::from_fn(|l| b.sq[l / 3]);
             let cmc: [f32; 3 * B] = core::array::from_fn(|l| cm[l % 3]);
+            let g0c: [f32; 3 * B] = core::array::from_fn(|l| g[l / 3]);
             for r in 0..b.rows.min(B) {
                 let (t, p) = (b.sq[B + r], g[B + r] * scale);
                 // The row's `g_0 · p` per cell.
@@ -151,8 +152,10 @@ impl Chunk {
                     .as_deref_mut()
                     .and_then(|c| c.get_mut(at * 3..(at + B) * 3));
                 if let Some(px) = px {
-                    for (l, (px, &s)) in px.iter_mut().zip(&s0c).enumerate() {
-                        *px += kept(s + t <= r2max, cmc[l] * w[l / 3]);
+                    // The color terms `cm · w`, computed before the cells are read.
+                    let tc: [f32; 3 * B] = core::array::from_fn(|l| cmc[l] * (g0c[l] * p));
+                    for ((px, &s), &tc) in px.iter_mut().zip(&s0c).zip(&tc) {
+                        *px += kept(s + t <= r2max, tc);
                     }
                 }
             }
