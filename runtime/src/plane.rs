@@ -110,8 +110,8 @@ impl Chunk {
     }
 
     /// Adds the splat terms of every waiting point (`color` holds their `premultiplied` colors)
-    /// and empties the chunk. A term is `splat_cells`': `g_0 · (g_1 · scale)` for the density,
-    /// `(g_0 · cm) · (g_1 · scale)` for a color channel, where the squared distance summed in axis
+    /// and empties the chunk. A term is `splat_cells`': `w = g_0 · (g_1 · scale)` for the density,
+    /// `cm · w` for a color channel, where the squared distance summed in axis
     /// order passes the cutoff.
     fn splat(
         &mut self,
@@ -133,24 +133,29 @@ impl Chunk {
         }
         let r2max = kp.radius2;
         for ((b, g), cm) in self.block[..n].iter().zip(&g).zip(&self.color) {
-            let (s0, g0) = (&b.sq[..B], &g[..B]);
+            let s0 = &b.sq[..B];
             // Interleaved-RGB lanes: lane `l` is cell `l / 3`, channel `l % 3`.
             let s0c: [f32; 3 * B] = core::array::from_fn(|l| b.sq[l / 3]);
-            let gc: [f32; 3 * B] = core::array::from_fn(|l| g[l / 3] * cm[l % 3]);
+            let cmc: [f32; 3 * B] = core::array::from_fn(|l| cm[l % 3]);
+            let g0c: [f32; 3 * B] = core::array::from_fn(|l| g[l / 3]);
             for r in 0..b.rows.min(B) {
                 let (t, p) = (b.sq[B + r], g[B + r] * scale);
+                // The row's `g_0 · p` per cell.
+                let w: [f32; B] = core::array::from_fn(|i| g[i] * p);
                 let at = b.at + r * stride;
                 if let Some(d) = density.get_mut(at..at + B) {
-                    for ((d, &s), &g) in d.iter_mut().zip(s0).zip(g0) {
-                        *d += kept(s + t <= r2max, g * p);
+                    for ((d, &s), &w) in d.iter_mut().zip(s0).zip(&w) {
+                        *d += kept(s + t <= r2max, w);
                     }
                 }
                 let px = color
                     .as_deref_mut()
                     .and_then(|c| c.get_mut(at * 3..(at + B) * 3));
                 if let Some(px) = px {
-                    for ((px, &s), &gc) in px.iter_mut().zip(&s0c).zip(&gc) {
-                        *px += kept(s + t <= r2max, gc * p);
+                    // The color terms `cm · w`, computed before the cells are read.
+                    let tc: [f32; 3 * B] = core::array::from_fn(|l| cmc[l] * (g0c[l] * p));
+                    for ((px, &s), &tc) in px.iter_mut().zip(&s0c).zip(&tc) {
+                        *px += kept(s + t <= r2max, tc);
                     }
                 }
             }

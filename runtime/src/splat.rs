@@ -21,7 +21,8 @@ use crate::MAX_DIM;
 /// product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
 /// `g_k = exp(−t_k² / 2σ²)` (computed by the splat's own exponential, `kernel::splat_exp`, a
 /// shorter one than the point query's) and `scale = norm / n` (a color channel:
-/// `(g_0 · c · mean mass) · P`),
+/// `(c · mean mass) · (g_0 · P)`, the density's weight times the premultiplied color, so that
+/// one weight per cell serves all four channels of an RGBA cell),
 /// instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact arithmetic the two
 /// are equal (the Gaussian is separable); the product lets a splat compute `d` small tables of
 /// factors per point instead of an exponential per (point, cell) pair, which is what makes
@@ -191,7 +192,7 @@ pub(crate) fn premultiplied(c: [f32; 3], mean_mass: f32) -> [f32; 3] {
 /// three color channels, then the density where alpha goes). Either way a cell gets the same terms in the same
 /// order, so the layouts hold the same bits.
 pub(crate) trait Cells {
-    /// Adds one point's term to region cell `cell`: `g0 · p` to the density and `(g0 · cm[k]) · p`
+    /// Adds one point's term to region cell `cell`: `w = g0 · p` to the density and `cm[k] · w`
     /// to color channel `k` (see [`SPLAT_TERM_TOLERANCE`]).
     fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32);
 
@@ -215,8 +216,9 @@ pub(crate) struct Planar<'b> {
 impl Cells for Planar<'_> {
     #[inline(always)]
     fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
+        let w = g0 * p;
         if let Some(v) = self.density.get_mut(cell) {
-            *v += g0 * p;
+            *v += w;
         }
         if let Some(px) = self
             .color
@@ -224,7 +226,7 @@ impl Cells for Planar<'_> {
             .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
         {
             for (v, c) in px.iter_mut().zip(cm) {
-                *v += (g0 * c) * p;
+                *v += c * w;
             }
         }
     }
@@ -238,10 +240,11 @@ impl Cells for Planar<'_> {
         cm: &[f32; 3],
         p: f32,
     ) {
+        let w: [f32; B] = core::array::from_fn(|i| g0[i] * p);
         if let Some(d) = self.density.get_mut(row..row + B) {
-            for ((d, &g0), &keep) in d.iter_mut().zip(g0).zip(keep) {
+            for ((d, &w), &keep) in d.iter_mut().zip(&w).zip(keep) {
                 if keep {
-                    *d += g0 * p;
+                    *d += w;
                 }
             }
         }
@@ -250,10 +253,10 @@ impl Cells for Planar<'_> {
             .as_deref_mut()
             .and_then(|c| c.get_mut(row * 3..(row + B) * 3))
         {
-            for ((px, &g0), &keep) in px.chunks_exact_mut(3).zip(g0).zip(keep) {
+            for ((px, &w), &keep) in px.chunks_exact_mut(3).zip(&w).zip(keep) {
                 if keep {
                     for (v, c) in px.iter_mut().zip(cm) {
-                        *v += (g0 * c) * p;
+                        *v += c * w;
                     }
                 }
             }
@@ -271,10 +274,11 @@ impl Cells for Rgba<'_> {
     #[inline(always)]
     fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
         if let Some(px) = self.cells.get_mut(cell * 4..cell * 4 + 4) {
+            let w = g0 * p;
             for (v, c) in px.iter_mut().zip(cm) {
-                *v += (g0 * c) * p;
+                *v += c * w;
             }
-            px[3] += g0 * p;
+            px[3] += w;
         }
     }
 

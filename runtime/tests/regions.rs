@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{fixture_with, weights, Fixture, Rng, STORAGES};
+use common::{fixture_colored, fixture_with, weights, Fixture, Rng, STORAGES};
 use otbake_runtime::{
     Blend, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region, SplatTarget, MAX_DIM,
     SPLAT_TERM_TOLERANCE,
@@ -282,6 +282,37 @@ proptest! {
         assert_rgba(dim, &region, &a, &density, &color)?;
         blend.splat_region_rgba(&w, kernel, region, &mut b).unwrap();
         assert_rgba(dim, &region, &b, &density, &color)?;
+    }
+
+    /// RGBA splats of blends whose colors are negative, `−0.0` or zero: the 3×3 blocks send
+    /// points with a negative or `−0.0` channel the general path (a dropped cell's `−0.0` weight
+    /// would not vanish from their products), and every cell keeps the full splat's bits.
+    #[test]
+    fn rgba_splats_of_signed_colors_equal_the_full_splat(seed in 0u64..10_000, n in 1usize..400,
+                                                         leaf in 1u32..9, k in 1usize..=4,
+                                                         sigma_cells in 0.1f32..0.5,
+                                                         st in 0..STORAGES.len()) {
+        let color = |u: f32| if u < 0.1 { -0.0 } else if u < 0.2 { 0.0 } else { (u - 0.5) * 4.0 };
+        let f = fixture_colored(seed, n, 2, leaf, k, [1; 32], STORAGES[st], color);
+        let (proxy, maps) = open(&f);
+        let blend = Blend::new(proxy, &maps).unwrap();
+        let mut rng = Rng(seed ^ 0x51a7);
+        let w = weights(&mut rng, k);
+        let mut store = Vec::new();
+        let prep = prepare(&blend, &w, &mut store);
+        let region = region2(&mut rng, 80);
+        let finest = *region.res[..2].iter().max().unwrap();
+        let kernel = Kernel { sigma: sigma_cells / finest as f32 };
+        let cells: usize = region.res[..2].iter().map(|&r| r as usize).product();
+        let mut density: Vec<f32> = (0..cells).map(start_value).collect();
+        let mut color: Vec<f32> = (0..cells * 3).map(|i| start_value(i + 1)).collect();
+        let mut a = rgba_start(2, &region, &density, &color);
+        let mut b = a.clone();
+        blend.splat(&w, kernel, SplatTarget { res: region.res, density: &mut density, color: Some(&mut color) }).unwrap();
+        prep.splat_region_rgba(kernel, region, &mut a).unwrap();
+        assert_rgba(2, &region, &a, &density, &color)?;
+        blend.splat_region_rgba(&w, kernel, region, &mut b).unwrap();
+        assert_rgba(2, &region, &b, &density, &color)?;
     }
 
     /// The tolerance of `otbake_runtime::splat`'s documentation: a cell reached by `m` points

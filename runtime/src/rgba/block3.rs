@@ -23,8 +23,12 @@
 //! Points go in chunks of [`N`]: one vector loop places all blocks (three squared distances per
 //! axis, centers by the grid's formula `(i + ½)/res`, the same bits as `Axes`' table), one
 //! computes all factors (`kernel::Prepared::factor`, lane by lane the reference's operations),
-//! then each point adds its nine cells: per cell `(g_0 · [c, 1]) · (g_1 · scale)`, the reference's
-//! products, with lanes outside the cutoff adding `−0.0` (which changes no float).
+//! one the nine cells' weights `w = g_0 · (g_1 · scale)` (the reference's products), `−0.0` where
+//! the cutoff test fails; then each point adds `[cm, 1] · w` to each of its nine cells, one 4-wide
+//! product and sum per cell. A dropped cell adds `cm · −0.0 = −0.0`, which changes no float,
+//! provided every `cm` is non-negative (not `−0.0`) and finite: a point whose premultiplied color
+//! is not (none, for colors of images) takes the general path, like a point near a tie. (Masks
+//! applied to every cell's four products cost two more instructions per cell.)
 
 use super::Fill;
 use crate::footprint::Axes;
@@ -44,8 +48,8 @@ const MAX_RES: f32 = (1u32 << 20) as f32;
 /// low bits of `v + ROUND` are that integer.
 const ROUND: f32 = 12_582_912.0;
 
-/// The sign bit of an `f32`.
-const SIGN: u32 = 0x8000_0000;
+/// The bits of `+∞`: an `f32` whose bits are below it is non-negative (not `−0.0`) and finite.
+const INF: u32 = 0x7F80_0000;
 
 /// Whether a 2D region takes this path for a kernel of truncation radius `radius`.
 pub(crate) fn fits(axes: &Axes<2>, radius: f32) -> bool {
@@ -104,14 +108,6 @@ impl Axis {
     }
 }
 
-/// All ones if `r2 > r2max` (the cutoff test fails), else 0, for `r2` not NaN: the sign of
-/// `r2max − r2`, which is negative exactly when `r2 > r2max` (a difference of floats is 0 only
-/// for equal ones, and `+0` then).
-#[inline(always)]
-fn dropped(r2max: f32, r2: f32) -> u32 {
-    (((r2max - r2).to_bits() as i32) >> 31) as u32
-}
-
 /// The integer value of `m` (an integer in `[0, 2²²]`), by its bits.
 #[inline(always)]
 fn int(m: f32) -> u32 {
@@ -130,14 +126,14 @@ struct Chunk {
     sq: [[f32; N]; 6],
     /// Their factors.
     g: [[f32; N]; 6],
-    /// The rows' `g_1 · scale`.
-    py: [[f32; N]; 3],
     /// Middle cells (x, y), global.
     mid: [[u32; N]; 2],
-    /// Whether the block holds every cell the point counts (else: the general path).
+    /// Whether the block holds every cell the point counts and its `[cm, 1]` is non-negative
+    /// and finite (else: the general path).
     ok: [u32; N],
-    /// Which of the nine cells each point drops (cutoff test failed), as masks.
-    drop: [[u32; N]; 9],
+    /// The nine cells' weights `w = g_0 · (g_1 · scale)` (cell `3j + i`: row `j`, column `i`),
+    /// `−0.0` where the cutoff test fails.
+    w: [[f32; N]; 9],
 }
 
 /// What every chunk's splat needs.
@@ -166,10 +162,9 @@ impl Chunk {
             cv,
             sq,
             g,
-            py,
             mid,
             ok,
-            drop,
+            w,
             ..
         } = self;
         // Blocks: squared distances, middle cells and whether the block is exact, in a vector
@@ -185,21 +180,25 @@ impl Chunk {
             mid[1][p] = int(my);
             ok[p] = (okx & oky) as u32;
         }
-        // Every factor of the chunk in one vector loop; the rows' `g_1 · scale`.
+        // Every factor of the chunk in one vector loop.
         for (g, &s) in g.as_flattened_mut().iter_mut().zip(sq.as_flattened()) {
             *g = cx.kp.factor(s);
         }
-        for (p, &g) in py.as_flattened_mut().iter_mut().zip(g[3..].as_flattened()) {
-            *p = g * cx.scale;
-        }
-        // Which cells each point drops, in a vector loop of their own, so that the cells below
-        // stay branch-free (masks computed next to their use became a branch per cell).
+        // The nine weights of every point, `−0.0` where the cutoff fails (`<=`, false for NaN, as
+        // in the reference), in a vector loop of their own: compares and selects, so the cells
+        // below stay branch-free (a test next to its cell became a branch per cell).
         let r2max = cx.kp.radius2;
         for p in 0..N {
             for j in 0..3 {
+                let py = g[3 + j][p] * cx.scale;
                 for i in 0..3 {
                     // Summed in axis order, as `point::point` does.
-                    drop[3 * j + i][p] = dropped(r2max, sq[i][p] + sq[3 + j][p]);
+                    let t = g[i][p] * py;
+                    w[3 * j + i][p] = if sq[i][p] + sq[3 + j][p] <= r2max {
+                        t
+                    } else {
+                        -0.0
+                    };
                 }
             }
         }
@@ -210,21 +209,26 @@ impl Chunk {
                 v[k] = [c[3 * k] * m, c[3 * k + 1] * m, c[3 * k + 2] * m, 1.0];
             }
         }
+        // A point with a color channel negative, `−0.0` or not finite goes the general path
+        // (below): one vector pass over the chunk, points tested one by one only if it fails.
+        let bad = cv
+            .as_flattened()
+            .iter()
+            .fold(0u32, |a, c| a | (c.to_bits() >= INF) as u32);
+        if bad != 0 {
+            for (ok, v) in ok.iter_mut().zip(cv.iter()) {
+                *ok &= v.iter().fold(true, |a, c| a & (c.to_bits() < INF)) as u32;
+            }
+        }
         let (s4, span) = (cx.stride * 4, cx.stride * 8 + 12);
         for p in 0..len {
-            let cv = cv[p];
             if ok[p] == 0 {
                 let (x, y) = (pos[2 * p], pos[2 * p + 1]);
-                let cm = [cv[0], cv[1], cv[2]];
+                let cm = [cv[p][0], cv[p][1], cv[p][2]];
                 splat_point(cx.axes, &[x, y], &cm, cx.kp, cx.radius, cx.scale, out);
                 continue;
             }
-            // Negated `g_0 · [cm, 1]` (negation is exact): a kept lane is flipped back below by
-            // the sign flip that also turns a dropped lane's 0 into −0.0.
-            let gn: [[f32; 4]; 3] = core::array::from_fn(|i| {
-                let g0 = -g[i][p];
-                cv.map(|c| g0 * c)
-            });
+            let cv = cv[p];
             // The block's three rows of three cells (in the region: blocks are moved inside it,
             // so the checks below never fail).
             let at = (mid[1][p].wrapping_sub(1 + cx.y.first) as usize)
@@ -244,12 +248,12 @@ impl Chunk {
                 let Some(cells) = row.first_chunk_mut::<12>() else {
                     continue;
                 };
-                let pj = py[j][p];
                 for i in 0..3 {
-                    let drop = drop[3 * j + i][p];
+                    // `cm · w` and the density's `1 · w = w`: a dropped cell's `−0.0` times a
+                    // non-negative finite factor is `−0.0`, which changes no float.
+                    let w = w[3 * j + i][p];
                     for ch in 0..4 {
-                        let t = gn[i][ch] * pj;
-                        cells[4 * i + ch] += f32::from_bits((t.to_bits() & !drop) ^ SIGN);
+                        cells[4 * i + ch] += cv[ch] * w;
                     }
                 }
             }
@@ -283,10 +287,9 @@ pub(crate) fn splat(
         cv: [[0.0; 4]; N],
         sq: [[0.0; N]; 6],
         g: [[0.0; N]; 6],
-        py: [[0.0; N]; 3],
         mid: [[0; N]; 2],
         ok: [0; N],
-        drop: [[0; N]; 9],
+        w: [[0.0; N]; 9],
     };
     walk_nodes(s, axes, radius, kp.radius2, shifts, |node, m| {
         let range = node.range();

@@ -82,6 +82,22 @@ pub fn fixture_with(
     key: [u8; 32],
     storage: Storage,
 ) -> Fixture {
+    fixture_colored(seed, n, dim, leaf, k, key, storage, |u| u * 2.0)
+}
+
+/// [`fixture_with`] whose color channels are `color(u)` for uniform `u` in [0, 1) (the same
+/// random streams otherwise).
+#[allow(clippy::too_many_arguments)]
+pub fn fixture_colored(
+    seed: u64,
+    n: usize,
+    dim: usize,
+    leaf: u32,
+    k: usize,
+    key: [u8; 32],
+    storage: Storage,
+    color: fn(f32) -> f32,
+) -> Fixture {
     let mut rng = Rng(seed);
     let d = depth(n as u32, leaf);
     let nodes = node_count(d) as usize;
@@ -118,7 +134,7 @@ pub fn fixture_with(
                 (center[i % dim] + 0.3 * (rng.unit() - 0.5) * (1.0 + rng.unit())).clamp(0.0, 1.0)
             })
             .collect();
-        let colors: Vec<f32> = (0..n * 3).map(|_| rng.unit() * 2.0).collect();
+        let colors: Vec<f32> = (0..n * 3).map(|_| color(rng.unit())).collect();
         let mean = 0.1 + rng.unit();
         // Spacings from their own generator (the other streams stay as they were), over two
         // decades: adaptive kernels of every width, unrelated to where the points are.
