@@ -686,13 +686,15 @@ const RELAX_AFTER: u32 = 5;
 /// lowest error seen since the build.
 const RELAX_GROWTH: f64 = 1e3;
 
-/// One scaling update, over-relaxed by `omega` (1: the plain update).
+/// One scaling update, over-relaxed by `omega` (1: the plain update): old^(1−ω)·plain^ω, computed
+/// as plain·(plain/old)^(ω−1) with one `powf` instead of two (about 12 ns each; `pow` was 6.5% of
+/// the 1M cow's CPU time with two).
 #[inline]
 fn relax(old: f64, plain: f64, omega: f64) -> f64 {
     if omega == 1.0 {
         plain
     } else {
-        old.powf(1.0 - omega) * plain.powf(omega)
+        plain * (plain / old).powf(omega - 1.0)
     }
 }
 
@@ -707,6 +709,10 @@ const LOCAL_MOVE: f64 = 1.0 / 16.0;
 /// are noise of about ε/2 around the hard potentials a build starts from), but few move more than
 /// θε/4, so these rebuilds search 5–10× fewer rows and columns.
 const LOCAL_MOVE_MID: f64 = 1.0 / 4.0;
+
+/// A rebuild once the error is within this factor of the tolerance is strict even during the stage
+/// (see `iterate`): the 1M cow's final stage rebuilt loosely at iteration 33 and strictly at 35.
+const NEAR_END: f64 = 10.0;
 
 /// A local rebuild gives way to a whole one when more than 1/`LOCAL_SHARE` of the rows or of the
 /// columns moved (searching them would cost about as much).
@@ -849,7 +855,12 @@ fn iterate<const D: usize>(
                 }),
             });
         }
-        let far = drift.iter().fold(rows_far, |a, &d| a.max(d));
+        let cols_far = drift.iter().fold(1f64, |a, &d| a.max(d));
+        let far = rows_far.max(cols_far);
+        // A dropped pair moved by its row's drift plus its column's (in units of ε): the end of a
+        // stage bounds that sum by twice the soft limit, not each part by the limit (the 1M cow's
+        // final stage ended with rows at e^1.81 and columns below, a rebuild of 4 s spared).
+        let pair_drift = rows_far.max(1.0) * cols_far;
         // The error is the row marginal of the previous iteration's plan, whose columns are exact
         // only if that iteration was plain.
         let converged = it > 1 && error <= tol && prev_plain;
@@ -864,7 +875,7 @@ fn iterate<const D: usize>(
             // Never ends a stage.
             Support::Loose => 0.0,
         };
-        if converged && far <= soft {
+        if converged && pair_drift <= soft * soft {
             return Ok(StageLog {
                 iterations: it,
                 converged: true,
@@ -875,10 +886,12 @@ fn iterate<const D: usize>(
         // A support that has drifted past θε may be unable to carry the marginals at all (the
         // stage would stall short of the tolerance): past θε a stage gets STALE_ITERATIONS more.
         let stale = far > drift_stale && since_build >= STALE_ITERATIONS;
-        if far > drift_hard || stale || (converged && far > soft) {
+        if far > drift_hard || stale || (converged && pair_drift > soft * soft) {
             // Absorb and rebuild the kernel around the new potentials: locally (only the rows and
             // columns that moved) while few moved, else whole; loosely unless the stage is ending.
-            let mid = !converged;
+            // Near the end (the error within NEAR_END of the tolerance) a rebuild is strict at
+            // once: the stage would end on it, and a loose one would need a strict one after it.
+            let mid = !converged && error > NEAR_END * tol;
             let g = absorbed(&st.g, &st.v, &b, st.eps);
             let tk = std::time::Instant::now();
             let rows = hs.levels[st.level].len();
