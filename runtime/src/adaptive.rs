@@ -273,14 +273,7 @@ fn add_leaf<S: Spaced>(
 
 /// The point value of normalized kernel sums ([`accumulate`]).
 pub(crate) fn finish(s: &impl Source, sum: f32, csum: [f32; 3]) -> PointValue {
-    let inv_n = 1.0 / s.n() as f32;
-    let mean_mass = s.mean_mass();
-    let density = sum * inv_n;
-    PointValue {
-        density,
-        mass: density * mean_mass,
-        color: csum.map(|c| c * inv_n * mean_mass),
-    }
+    crate::point::scaled(s, 1.0 / s.n() as f32, sum, csum)
 }
 
 impl Blend<'_, '_> {

@@ -95,7 +95,12 @@ pub(crate) fn accumulate(
 
 /// The point value of kernel sums `sum`, `csum` ([`accumulate`]).
 pub(crate) fn finish(s: &impl Source, kp: Prepared, sum: f32, csum: [f32; 3]) -> PointValue {
-    let scale = kp.norm / s.n() as f32;
+    scaled(s, kp.norm / s.n() as f32, sum, csum)
+}
+
+/// The point value of kernel sums times `scale` (the kernel's norm over n; 1/n for the adaptive
+/// kernel, whose points carry their own norms).
+pub(crate) fn scaled(s: &impl Source, scale: f32, sum: f32, csum: [f32; 3]) -> PointValue {
     let mean_mass = s.mean_mass();
     let density = sum * scale;
     PointValue {
