@@ -99,8 +99,16 @@ fn quick_bench_writes_expected_rows_and_chart() {
                 assert_eq!(distance, 0.0, "{what}");
             }
             "sinkhorn" => {
-                // Its default map is a matching too: never cheaper than the optimal one, and close.
-                assert!((1.0 - 1e-9..1.02).contains(&ratio), "{what}");
+                // Its default map is a matching too: never cheaper than the optimal one, and close:
+                // the auction stops within ε/4 per point of the best matching its support allows,
+                // ε the final blur², so the bound grows with blur_spacing (at 2 spacings that ε/4
+                // is a full spacing²: 1.3–2.0% above exact on the four shapes at n = 400).
+                let limit = if r["settings"].contains("blur_spacing=2") {
+                    1.035
+                } else {
+                    1.02
+                };
+                assert!((1.0 - 1e-9..limit).contains(&ratio), "{what}");
                 assert!(uvp < 5.0, "{what}");
                 assert_eq!(distance, 0.0, "{what}");
             }
