@@ -858,8 +858,9 @@ fn iterate<const D: usize>(
         let cols_far = drift.iter().fold(1f64, |a, &d| a.max(d));
         let far = rows_far.max(cols_far);
         // A dropped pair moved by its row's drift plus its column's (in units of ε): the end of a
-        // stage bounds that sum by twice the soft limit, not each part by the limit (the 1M cow's
-        // final stage ended with rows at e^1.81 and columns below, a rebuild of 4 s spared).
+        // stage bounds that sum by twice the soft limit, which is what the θε/2 guarantee needs,
+        // rather than each part by the limit (a stage whose rows drifted a little more than the
+        // limit and whose columns stayed put no longer needs a rebuild).
         let pair_drift = rows_far.max(1.0) * cols_far;
         // The error is the row marginal of the previous iteration's plan, whose columns are exact
         // only if that iteration was plain.
