@@ -12,7 +12,7 @@ use crate::fsio::{read_aligned, IoError};
 use crate::imageio::Rgba;
 use crate::manifest::Manifest;
 use otbake_formats::Composite;
-use otbake_runtime::{Blend, Kernel, Map, PointValue, Proxy, Region, MAX_DIM};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, Proxy, Region, MAX_DIM};
 use rayon::prelude::*;
 use rkyv::util::AlignedVec;
 
@@ -163,21 +163,8 @@ pub fn render<'a>(
             // The blend is mixed once for these weights; the point grids then read plain arrays.
             // The buffers are kept per thread between renders (a grid renders many blends of one
             // bake): fresh ones would cost page faults on every image.
-            let sizes = blend.prepared_sizes();
             let mut store = PREPARED.with(|b| std::mem::take(&mut *b.borrow_mut()));
-            store.resize(sizes.total(), 0.0);
-            let prep = blend
-                .prepare_with(
-                    weights,
-                    sizes
-                        .split(&mut store)
-                        .expect("sized by PreparedSizes::total"),
-                    // Its two halves (geometry, colors) on two threads: the same bits either way.
-                    |geometry, color| {
-                        rayon::join(geometry, color);
-                    },
-                )
-                .map_err(runtime("--weights"))?;
+            let prep = prepare_into(&blend, weights, &mut store).map_err(runtime("--weights"))?;
             let mut values = VALUES.with(|b| std::mem::take(&mut *b.borrow_mut()));
             // Every value is overwritten by `point_grid`.
             values.resize(w * h, PointValue::default());
@@ -291,6 +278,24 @@ fn balanced_bands(maps: &[Map<'_>], weights: &[f32], h: usize, bands: usize) -> 
     starts.resize(bands, h);
     starts.push(h);
     starts
+}
+
+/// `blend` mixed for `weights` into `store` (resized to the blend's `PreparedSizes`), its two halves
+/// (geometry, colors) on two threads: the same bits either way.
+pub(crate) fn prepare_into<'s>(
+    blend: &Blend<'_, '_>,
+    weights: &[f32],
+    store: &'s mut Vec<f32>,
+) -> Result<Prepared<'s>, otbake_runtime::Error> {
+    let sizes = blend.prepared_sizes();
+    store.resize(sizes.total(), 0.0);
+    blend.prepare_with(
+        weights,
+        sizes.split(store).expect("sized by PreparedSizes::total"),
+        |geometry, color| {
+            rayon::join(geometry, color);
+        },
+    )
 }
 
 /// Rows per band of a parallel render: a few bands per thread for balance, tall enough that the

@@ -35,7 +35,7 @@
 
 use super::vol::VolFile;
 use crate::imageio::Rgba;
-use crate::render::{grid_cells, Archives, RenderError};
+use crate::render::{grid_cells, prepare_into, Archives, RenderError};
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, Proxy, Region};
 use rayon::prelude::*;
 
@@ -84,20 +84,8 @@ fn with_prepared<R>(
     weights: &[f32],
     f: impl FnOnce(&Prepared<'_>) -> Result<R, VolumeRenderError>,
 ) -> Result<R, VolumeRenderError> {
-    let sizes = blend.prepared_sizes();
-    let mut store = vec![0f32; sizes.total()];
-    let prep = blend
-        .prepare_with(
-            weights,
-            sizes
-                .split(&mut store)
-                .expect("sized by PreparedSizes::total"),
-            // Its two halves (geometry, colors) on two threads: the same bits either way.
-            |geometry, color| {
-                rayon::join(geometry, color);
-            },
-        )
-        .map_err(runtime("--weights"))?;
+    let mut store = Vec::new();
+    let prep = prepare_into(blend, weights, &mut store).map_err(runtime("--weights"))?;
     f(&prep)
 }
 
