@@ -254,12 +254,19 @@ pub fn step(lo: f32, hi: f32, precision: Precision) -> f32 {
 
 /// Decodes code `q` on the grid `[lo, hi]` of `step` with largest code `max` (see the module docs):
 /// monotone in `q`, `lo` at 0, `hi` at `max`, never outside `[lo, hi]` when `lo <= hi`.
+///
+/// Written as compares and selects, without casts of unsigned values, so that loops of decodes
+/// vectorize lane for lane (SSE2 has no unsigned conversion, and `f32::min` costs a NaN fix-up):
+/// `v < hi ? v : hi` is `min(v, hi)` for every `v` (a NaN `v`, which finite grids never give,
+/// yields `hi` as `f32::min` does), and `q as i32` is `q` for every code below `max <= 65535`.
 #[inline(always)]
 pub fn dequantize(lo: f32, hi: f32, step: f32, q: u32, max: u32) -> f32 {
+    let v = lo + (q as i32) as f32 * step;
+    let v = if v < hi { v } else { hi };
     if q >= max {
         hi
     } else {
-        (lo + q as f32 * step).min(hi)
+        v
     }
 }
 

@@ -68,6 +68,67 @@ fn at(values: &[f32_le], i: usize) -> f32 {
     values.get(i).map_or(0.0, |v| v.to_native())
 }
 
+/// Lanes of [`add_codes`]' loops: a multiple of every dimension (1..=4) and of the 3 color
+/// channels, so lane `l` of every step decodes axis (channel) `l % d` on that one's grid.
+const LANES: usize = 12;
+
+/// `out[j] += w · v_j` for the values `v_j` of `bytes` (`f32`, or codes of `p` decoded by
+/// [`dequantize`] on the grid of lane `j % LANES`), as far as both reach: plain zipped loops of
+/// [`LANES`] values a step, which the compiler vectorizes lane for lane (the same operations, so
+/// the same bits as one value at a time).
+#[inline(always)]
+fn add_codes(
+    out: &mut [f32],
+    bytes: &[u8],
+    p: Precision,
+    lo: &[f32; LANES],
+    hi: &[f32; LANES],
+    step: &[f32; LANES],
+    w: f32,
+) {
+    let m = p.max_code();
+    let decode = |l: usize, q: u32| dequantize(lo[l], hi[l], step[l], q, m);
+    // The entries both reach, so that chunks and remainders line up.
+    let len = out.len().min(bytes.len() / p.bytes());
+    let (Some(out), Some(bytes)) = (out.get_mut(..len), bytes.get(..len * p.bytes())) else {
+        return;
+    };
+    match p {
+        Precision::F32 => {
+            for (o, v) in out.iter_mut().zip(f32s(bytes)) {
+                *o += w * v;
+            }
+        }
+        Precision::U8 => {
+            let mut outs = out.chunks_exact_mut(LANES);
+            let mut codes = bytes.chunks_exact(LANES);
+            for (o, c) in (&mut outs).zip(&mut codes) {
+                for l in 0..LANES {
+                    o[l] += w * decode(l, c[l] as u32);
+                }
+            }
+            let rest = codes.remainder();
+            for (l, (o, &c)) in outs.into_remainder().iter_mut().zip(rest).enumerate() {
+                *o += w * decode(l, c as u32);
+            }
+        }
+        Precision::U16 => {
+            let mut outs = out.chunks_exact_mut(LANES);
+            let mut codes = bytes.chunks_exact(2 * LANES);
+            for (o, c) in (&mut outs).zip(&mut codes) {
+                for l in 0..LANES {
+                    let q = u16::from_le_bytes([c[2 * l], c[2 * l + 1]]) as u32;
+                    o[l] += w * decode(l, q);
+                }
+            }
+            let rest = codes.remainder().chunks_exact(2);
+            for (l, (o, c)) in outs.into_remainder().iter_mut().zip(rest).enumerate() {
+                *o += w * decode(l, u16::from_le_bytes([c[0], c[1]]) as u32);
+            }
+        }
+    }
+}
+
 /// A validated map archive and the decode parameters of its storage.
 #[derive(Clone, Copy)]
 pub struct MapView<'a> {
@@ -373,7 +434,6 @@ impl<'a> MapView<'a> {
             }
             return;
         }
-        let (m, b) = (p.max_code(), p.bytes());
         let level = self.depth.saturating_sub(1);
         let count = if self.depth == 0 { 1 } else { 1u32 << level };
         for offset in 0..count {
@@ -385,59 +445,64 @@ impl<'a> MapView<'a> {
                 Grid::of_box(lo, hi, p)
             };
             let r = node.range();
-            let (Some(codes), Some(outs)) = (
-                bytes.get(r.start * d * b..r.end * d * b),
-                out.get_mut(r.start * d..r.end * d),
-            ) else {
-                continue;
-            };
-            match p {
-                Precision::U8 => {
-                    for (o, c) in outs.chunks_exact_mut(d).zip(codes.chunks_exact(d)) {
-                        for k in 0..d {
-                            o[k] += w * dequantize(g.lo[k], g.hi[k], g.step[k], c[k] as u32, m);
-                        }
-                    }
-                }
-                _ => {
-                    for (o, c) in outs.chunks_exact_mut(d).zip(codes.chunks_exact(2 * d)) {
-                        for k in 0..d {
-                            let q = u16::from_le_bytes([c[2 * k], c[2 * k + 1]]) as u32;
-                            o[k] += w * dequantize(g.lo[k], g.hi[k], g.step[k], q, m);
-                        }
-                    }
-                }
+            if let Some(outs) = out.get_mut(r.start * d..r.end * d) {
+                self.add_positions_on(&g, r.start, w, outs);
             }
         }
     }
 
+    /// `out[j] += w · v_j` for the decoded coordinates `v_j` of the `out.len() / dim` points from
+    /// `start` (`j = (i − start)·dim + axis`), all decoded on `grid` (their leaves' parent's,
+    /// [`MapView::leaf_grid`]; ignored for `f32` positions): the decode and mix of
+    /// [`MapView::add_positions`] for a run of points, the same bits, in loops that vectorize.
+    /// Entries past the stored points are untouched.
+    #[inline]
+    pub fn add_positions_on(&self, grid: &Grid, start: usize, w: f32, out: &mut [f32]) {
+        let bytes: &[u8] = &self.archived.positions;
+        let (d, p) = (self.dim, self.storage.positions);
+        let at = start * d * p.bytes();
+        let Some(bytes) = bytes.get(at..) else {
+            return;
+        };
+        let lanes = |v: &[f32; MAX_DIM]| -> [f32; LANES] { core::array::from_fn(|l| v[l % d]) };
+        add_codes(
+            out,
+            bytes,
+            p,
+            &lanes(&grid.lo),
+            &lanes(&grid.hi),
+            &lanes(&grid.step),
+            w,
+        );
+    }
+
     /// `out[j] += w · v_j` for every decoded color value `j = i·3 + channel`.
     pub fn add_colors(&self, w: f32, out: &mut [f32]) {
+        self.add_colors_from(0, w, out);
+    }
+
+    /// `out[j] += w · v_j` for the decoded color values of the `out.len() / 3` points from `start`
+    /// (`j = (i − start)·3 + channel`; nothing without colors): [`MapView::add_colors`] for a run
+    /// of points, the same bits. Entries past the stored points are untouched.
+    #[inline]
+    pub fn add_colors_from(&self, start: usize, w: f32, out: &mut [f32]) {
+        let Some(p) = self.storage.colors else {
+            return;
+        };
         let bytes: &[u8] = &self.archived.colors;
-        let (lo, hi, s) = (self.color_lo, self.color_hi, self.color_step);
-        match self.storage.colors {
-            None => {}
-            Some(Precision::F32) => {
-                for (o, v) in out.iter_mut().zip(f32s(bytes)) {
-                    *o += w * v;
-                }
-            }
-            Some(Precision::U8) => {
-                for (o, c) in out.chunks_exact_mut(3).zip(bytes.chunks_exact(3)) {
-                    for ch in 0..3 {
-                        o[ch] += w * dequantize(lo[ch], hi[ch], s[ch], c[ch] as u32, 255);
-                    }
-                }
-            }
-            Some(Precision::U16) => {
-                for (o, c) in out.chunks_exact_mut(3).zip(bytes.chunks_exact(6)) {
-                    for ch in 0..3 {
-                        let q = u16::from_le_bytes([c[2 * ch], c[2 * ch + 1]]) as u32;
-                        o[ch] += w * dequantize(lo[ch], hi[ch], s[ch], q, 65535);
-                    }
-                }
-            }
-        }
+        let Some(bytes) = bytes.get(start * COLOR_CHANNELS * p.bytes()..) else {
+            return;
+        };
+        let lanes = |v: &[f32; 3]| -> [f32; LANES] { core::array::from_fn(|l| v[l % 3]) };
+        add_codes(
+            out,
+            bytes,
+            p,
+            &lanes(&self.color_lo),
+            &lanes(&self.color_hi),
+            &lanes(&self.color_step),
+            w,
+        );
     }
 
     /// `out[j] += w · v_j` for every decoded internal node box value `j = node·2·dim + t`.
@@ -560,6 +625,22 @@ impl<'a> MapView<'a> {
             }
         }
         out
+    }
+
+    /// The value color code `q` of `channel` (0..3) decodes to, by [`dequantize`] on the map's
+    /// color grid (0 unless colors are quantized): what a reader tabulates to decode `u8` colors
+    /// by lookup, with the bits of every other decode.
+    pub fn color_code_value(&self, channel: usize, q: u32) -> f32 {
+        match (self.storage.colors, channel < COLOR_CHANNELS) {
+            (Some(p), true) if p.is_quantized() => dequantize(
+                self.color_lo[channel],
+                self.color_hi[channel],
+                self.color_step[channel],
+                q,
+                p.max_code(),
+            ),
+            _ => 0.0,
+        }
     }
 
     /// Largest difference per channel between a stored color ratio and its full-precision value

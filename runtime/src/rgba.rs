@@ -18,6 +18,7 @@
 
 mod block3;
 
+use crate::archive::Map;
 use crate::blend::Blend;
 use crate::error::Error;
 use crate::footprint::Axes;
@@ -27,9 +28,11 @@ use crate::periodic::Shifts;
 use crate::prepared::{mix_stream, Prepared};
 use crate::splat::{premultiplied, Rgba};
 use crate::splat_region::splat_point;
+use otbake_formats::storage::dequantize;
 use otbake_formats::storage::Precision;
 use otbake_formats::tree::Node;
-use otbake_formats::view::f32s;
+use otbake_formats::view::{f32s, Grid};
+use otbake_formats::MAX_DIM;
 
 /// A blend's points as a region splat reads them.
 pub(crate) trait Fill: Tree {
@@ -64,25 +67,44 @@ impl Fill for Prepared<'_> {
 /// A blend and one (checked) weight vector, mixed as the walk reads it: internal node boxes when
 /// visited, points a run at a time — each value by the operations of `Blend::prepare`, so the
 /// same bits. Leaves are visited without a box test (their box would cost mixing their points).
+/// Runs may span leaves: quantized positions are decoded a leaf parent at a time, on its grid.
 pub(crate) struct Mixed<'s, 'a, 'm> {
     blend: &'s Blend<'a, 'm>,
     weights: &'s [f32],
-    /// Every map stores `f32` positions: runs may span leaves (a quantized position decodes on
-    /// its leaf's grid, so otherwise the walk hands over leaves only).
-    plain: bool,
     mean_mass: f32,
+    /// With `u8` colors in every map (and at most [`TABLES`] maps): `w_k · v` for every code `v`
+    /// of every channel of map `k`, so that a color decodes and mixes by lookups — the products
+    /// `mix` computes, so the same bits.
+    color_tables: Option<[[[f32; 256]; 3]; TABLES]>,
 }
+
+/// Maps whose `u8` colors [`Mixed`] tabulates (12 KB of tables on the stack).
+const TABLES: usize = 4;
 
 impl<'s, 'a, 'm> Mixed<'s, 'a, 'm> {
     pub(crate) fn new(blend: &'s Blend<'a, 'm>, weights: &'s [f32]) -> Self {
+        let u8_colors = blend.has_color
+            && blend.maps.len() <= TABLES
+            && blend
+                .maps
+                .iter()
+                .all(|m| m.storage().colors == Some(Precision::U8));
+        let color_tables = u8_colors.then(|| {
+            let mut t = [[[0.0f32; 256]; 3]; TABLES];
+            for ((t, m), &w) in t.iter_mut().zip(blend.maps).zip(weights) {
+                for (c, t) in t.iter_mut().enumerate() {
+                    for (q, t) in t.iter_mut().enumerate() {
+                        *t = w * m.view().color_code_value(c, q as u32);
+                    }
+                }
+            }
+            t
+        });
         Self {
             blend,
             weights,
-            plain: blend
-                .maps
-                .iter()
-                .all(|m| m.storage().positions == Precision::F32),
             mean_mass: blend.mixed_mean_mass(weights),
+            color_tables,
         }
     }
 }
@@ -112,7 +134,7 @@ impl Tree for Mixed<'_, '_, '_> {
         Some((lo, hi))
     }
     fn whole_subtrees(&self) -> bool {
-        self.plain
+        true
     }
 }
 
@@ -124,77 +146,171 @@ impl Fill for Mixed<'_, '_, '_> {
         self.mean_mass
     }
     #[inline(always)]
-    fn fill<const D: usize>(&self, node: Node, start: usize, pos: &mut [f32], col: &mut [f32]) {
+    fn fill<const D: usize>(&self, _node: Node, start: usize, pos: &mut [f32], col: &mut [f32]) {
         let count = pos.len() / D;
-        let color = self.blend.has_color;
-        // Four `f32` maps (the usual 4-way blend): one pass reads the four streams side by side.
-        if let ([a, b, c, d], Ok(w)) = (self.blend.maps, <[f32; 4]>::try_from(self.weights)) {
-            let all_f32 = [a, b, c, d].iter().all(|m| {
-                m.storage().positions == Precision::F32
-                    && (!color || m.storage().colors == Some(Precision::F32))
-            });
-            if all_f32 {
-                let (at, len) = (start * D * 4, pos.len() * 4);
-                let positions = [a, b, c, d].map(|m| {
-                    let bytes: &[u8] = &m.view().archived().positions;
-                    bytes.get(at..at + len).unwrap_or(&[])
-                });
-                mix4(pos, &w, positions);
-                if color {
-                    let (at, len) = (start * 12, col.len() * 4);
-                    let colors = [a, b, c, d].map(|m| {
-                        let bytes: &[u8] = &m.view().archived().colors;
-                        bytes.get(at..at + len).unwrap_or(&[])
-                    });
-                    mix4(col, &w, colors);
+        let (maps, color) = (self.blend.maps, self.blend.has_color);
+        let four = <[f32; 4]>::try_from(self.weights).ok();
+        // Positions. Four `f32` maps (the usual 4-way blend): one pass reads the four streams
+        // side by side.
+        let f32_positions = maps.iter().all(|m| m.storage().positions == Precision::F32);
+        if let (Some(w), true) = (four, f32_positions) {
+            let (at, len) = (start * D * 4, pos.len() * 4);
+            mix4(pos, &w, fields4(maps, at, len, false));
+        } else {
+            // Map by map, each adding `w · v` to zeros (the bits of `mix`); quantized positions
+            // a leaf parent at a time (they decode on its grid).
+            pos.fill(0.0);
+            let (n, depth) = (self.blend.n, self.blend.depth);
+            let mut at = 0;
+            while at < count {
+                let (leaf, end) = if f32_positions {
+                    (Node::root(n), start + count)
                 } else {
-                    col.fill(0.0);
+                    leaf_and_parent_end(n, depth, (start + at) as u32)
+                };
+                let len = (end.saturating_sub(start + at)).clamp(1, count - at);
+                if let Some(out) = pos.get_mut(at * D..(at + len) * D) {
+                    for (&w, m) in self.weights.iter().zip(maps) {
+                        let v = m.view();
+                        match v.storage().positions {
+                            Precision::U8 => {
+                                let codes =
+                                    field(&v.archived().positions, (start + at) * D, len * D);
+                                add_u8::<D>(out, codes, &v.leaf_grid(leaf), w);
+                            }
+                            _ => v.add_positions_on(&v.leaf_grid(leaf), start + at, w, out),
+                        }
+                    }
                 }
-                return;
+                at += len;
             }
         }
+        // Colors: four `f32` maps in one pass, `u8` colors by lookups, else map by map.
         if !color {
             col.fill(0.0);
-        }
-        for (k, (&w, m)) in self.weights.iter().zip(self.blend.maps).enumerate() {
-            let (v, first) = (m.view(), k == 0);
-            let a = v.archived();
-            let bytes: &[u8] = &a.positions;
-            if v.storage().positions == Precision::F32 {
-                let b = bytes.get(start * D * 4..(start + count) * D * 4);
-                mix_stream(pos, w, first, f32s(b.unwrap_or(&[])));
-            } else {
-                // `node` is a leaf (see `plain`): its grid decodes its points.
-                if first {
-                    pos.fill(0.0);
-                }
-                let g = v.leaf_grid(node);
-                for (j, o) in pos.chunks_exact_mut(D).enumerate() {
-                    let p = v.position_on(&g, start + j);
-                    for (o, p) in o.iter_mut().zip(p) {
-                        *o += w * p;
-                    }
-                }
-            }
-            if !color {
-                continue;
-            }
-            let bytes: &[u8] = &a.colors;
-            if v.storage().colors == Some(Precision::F32) {
-                let b = bytes.get(start * 12..(start + count) * 12);
-                mix_stream(col, w, first, f32s(b.unwrap_or(&[])));
-            } else {
-                if first {
-                    col.fill(0.0);
-                }
-                for (j, o) in col.chunks_exact_mut(3).enumerate() {
-                    for (o, c) in o.iter_mut().zip(v.color(start + j)) {
-                        *o += w * c;
-                    }
-                }
+        } else if let (Some(w), true) = (
+            four,
+            maps.iter()
+                .all(|m| m.storage().colors == Some(Precision::F32)),
+        ) {
+            let (at, len) = (start * 12, col.len() * 4);
+            mix4(col, &w, fields4(maps, at, len, true));
+        } else if let Some(t) = &self.color_tables {
+            mix_u8_colors(maps, t, start, col);
+        } else {
+            col.fill(0.0);
+            for (&w, m) in self.weights.iter().zip(maps) {
+                m.view().add_colors_from(start, w, col);
             }
         }
     }
+}
+
+/// Bytes `at..at + len` of the first four maps' positions (or colors), [`field`] of each.
+fn fields4<'a>(maps: &[Map<'a>], at: usize, len: usize, colors: bool) -> [&'a [u8]; 4] {
+    core::array::from_fn(|k| match maps.get(k) {
+        Some(m) if colors => field(&m.view().archived().colors, at, len),
+        Some(m) => field(&m.view().archived().positions, at, len),
+        None => &[],
+    })
+}
+
+/// Bytes `at..at + len` of a field (empty if it is shorter, which validated archives never are).
+#[inline(always)]
+fn field(bytes: &[u8], at: usize, len: usize) -> &[u8] {
+    bytes.get(at..at + len).unwrap_or(&[])
+}
+
+/// `out[j] += w · v_j` for `u8` position codes decoded on `g` (axis `j % D`): by `dequantize`
+/// (the bits of every decode), four values a step where that is whole points, which the compiler
+/// vectorizes lane for lane.
+#[inline(always)]
+fn add_u8<const D: usize>(out: &mut [f32], codes: &[u8], g: &Grid, w: f32) {
+    let m = Precision::U8.max_code();
+    let len = out.len().min(codes.len());
+    let (Some(out), Some(codes)) = (out.get_mut(..len), codes.get(..len)) else {
+        return;
+    };
+    let lane = |v: &[f32; MAX_DIM]| -> [f32; 4] { core::array::from_fn(|l| v[l % D]) };
+    let (lo, hi, step) = (lane(&g.lo), lane(&g.hi), lane(&g.step));
+    let mut o4 = out.chunks_exact_mut(4);
+    let mut c4 = codes.chunks_exact(4);
+    if 4 % D == 0 {
+        for (o, c) in (&mut o4).zip(&mut c4) {
+            for l in 0..4 {
+                o[l] += w * dequantize(lo[l], hi[l], step[l], c[l] as u32, m);
+            }
+        }
+    }
+    // The rest (all of it unless D divides 4), one value at a time; lane `l` is axis `l % D`
+    // from wherever the loop above stopped, a multiple of 4 (of D when it ran).
+    let done = len - o4.len() * 4 - o4.into_remainder().len();
+    for (j, (o, &c)) in out.iter_mut().zip(codes).enumerate().skip(done) {
+        let k = j % D;
+        *o += w * dequantize(g.lo[k], g.hi[k], g.step[k], c as u32, m);
+    }
+}
+
+/// The blended color ratios of the points from `start` (three per point in `out`) from their
+/// maps' `u8` codes and `tables` (`w_k · v` per code, [`Mixed::color_tables`]): `mix`'s sums
+/// `((0 + w_0·v_0) + w_1·v_1) + …` in map order.
+#[inline(always)]
+fn mix_u8_colors(
+    maps: &[Map<'_>],
+    tables: &[[[f32; 256]; 3]; TABLES],
+    start: usize,
+    out: &mut [f32],
+) {
+    let len = out.len();
+    fn bytes<'a>(m: &Map<'a>, at: usize, len: usize) -> &'a [u8] {
+        let bytes: &'a [u8] = &m.view().archived().colors;
+        bytes.get(at..at + len).unwrap_or(&[])
+    }
+    let at = start * 3;
+    if let [a, b, c, d] = maps {
+        let [a, b, c, d] = [a, b, c, d].map(|m| bytes(m, at, len));
+        if [a, b, c, d].iter().all(|s| s.len() == len) {
+            let [ta, tb, tc, td] = tables;
+            for ((((o, a), b), c), d) in out
+                .chunks_exact_mut(3)
+                .zip(a.chunks_exact(3))
+                .zip(b.chunks_exact(3))
+                .zip(c.chunks_exact(3))
+                .zip(d.chunks_exact(3))
+            {
+                for ch in 0..3 {
+                    o[ch] = (((0.0 + ta[ch][a[ch] as usize]) + tb[ch][b[ch] as usize])
+                        + tc[ch][c[ch] as usize])
+                        + td[ch][d[ch] as usize];
+                }
+            }
+            return;
+        }
+    }
+    out.fill(0.0);
+    for (m, t) in maps.iter().zip(tables) {
+        for (o, q) in out
+            .chunks_exact_mut(3)
+            .zip(bytes(m, at, len).chunks_exact(3))
+        {
+            for ch in 0..3 {
+                o[ch] += t[ch][q[ch] as usize];
+            }
+        }
+    }
+}
+
+/// The leaf holding point `i` (the last one if `i >= n`) and the end of its parent's points (of
+/// the root's, `n`, when the root is the only leaf): the points that decode on its grid.
+fn leaf_and_parent_end(n: u32, depth: u32, i: u32) -> (Node, usize) {
+    let mut node = Node::root(n);
+    let mut end = n as usize;
+    while node.level < depth {
+        end = node.range().end;
+        let (l, r) = node.children();
+        node = if i < r.start { l } else { r };
+    }
+    (node, end)
 }
 
 /// `out[j] = (((0 + w_0·a_j) + w_1·b_j) + w_2·c_j) + w_3·d_j` over four little-endian `f32` streams:
