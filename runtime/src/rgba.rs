@@ -76,6 +76,9 @@ pub(crate) struct Mixed<'s, 'a, 'm> {
     /// of every channel of map `k`, so that a color decodes and mixes by lookups — the products
     /// `mix` computes, so the same bits.
     color_tables: Option<[[[f32; 256]; 3]; TABLES]>,
+    /// Every map stores `f32` positions (colors): runs are mixed from plain streams.
+    f32_positions: bool,
+    f32_colors: bool,
 }
 
 /// Maps whose `u8` colors [`Mixed`] tabulates (12 KB of tables on the stack).
@@ -105,6 +108,14 @@ impl<'s, 'a, 'm> Mixed<'s, 'a, 'm> {
             weights,
             mean_mass: blend.mixed_mean_mass(weights),
             color_tables,
+            f32_positions: blend
+                .maps
+                .iter()
+                .all(|m| m.storage().positions == Precision::F32),
+            f32_colors: blend
+                .maps
+                .iter()
+                .all(|m| m.storage().colors == Some(Precision::F32)),
         }
     }
 }
@@ -152,7 +163,7 @@ impl Fill for Mixed<'_, '_, '_> {
         let four = <[f32; 4]>::try_from(self.weights).ok();
         // Positions. Four `f32` maps (the usual 4-way blend): one pass reads the four streams
         // side by side.
-        let f32_positions = maps.iter().all(|m| m.storage().positions == Precision::F32);
+        let f32_positions = self.f32_positions;
         if let (Some(w), true) = (four, f32_positions) {
             let (at, len) = (start * D * 4, pos.len() * 4);
             mix4(pos, &w, fields4(maps, at, len, false));
@@ -188,11 +199,7 @@ impl Fill for Mixed<'_, '_, '_> {
         // Colors: four `f32` maps in one pass, `u8` colors by lookups, else map by map.
         if !color {
             col.fill(0.0);
-        } else if let (Some(w), true) = (
-            four,
-            maps.iter()
-                .all(|m| m.storage().colors == Some(Precision::F32)),
-        ) {
+        } else if let (Some(w), true) = (four, self.f32_colors) {
             let (at, len) = (start * 12, col.len() * 4);
             mix4(col, &w, fields4(maps, at, len, true));
         } else if let Some(t) = &self.color_tables {
