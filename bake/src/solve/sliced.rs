@@ -16,7 +16,7 @@
 
 use super::cost::det_sum;
 use super::rng::SplitMix64;
-use super::{Problem, Report, SlicedSettings, Solution, SolveError};
+use super::{Problem, Report, SlicedMap, SlicedSettings, Solution, SolveError};
 use rayon::prelude::*;
 
 pub(super) const NAME: &str = "sliced";
@@ -101,11 +101,42 @@ pub(super) fn solve(
             report: Box::new(report),
         });
     }
-    Ok(Solution {
-        mapped,
-        assignment: None,
-        report,
-    })
+    match settings.map {
+        SlicedMap::Flow => Ok(Solution {
+            mapped,
+            assignment: None,
+            report,
+        }),
+        SlicedMap::Assignment => {
+            let t = std::time::Instant::now();
+            let snap = super::snap::snap(dim, &mapped, problem.target);
+            if std::env::var_os("OTBAKE_TRACE").is_some() {
+                eprintln!("  snap {:.2}s: {}", t.elapsed().as_secs_f64(), snap.describe());
+            }
+            let mapped: Vec<f32> = snap
+                .assignment
+                .iter()
+                .flat_map(|&j| &problem.target[j as usize * dim..(j as usize + 1) * dim])
+                .copied()
+                .collect();
+            let cost = super::transport_cost(dim, problem.source, &mapped);
+            let report = Report {
+                cost,
+                detail: format!(
+                    "{}; flow cost={:e}, map=assignment: {}, cost={cost:e}",
+                    report.detail,
+                    report.cost,
+                    snap.describe()
+                ),
+                ..report
+            };
+            Ok(Solution {
+                mapped,
+                assignment: Some(snap.assignment),
+                report,
+            })
+        }
+    }
 }
 
 pub(super) fn check_settings(s: &SlicedSettings) -> Result<(), SolveError> {
