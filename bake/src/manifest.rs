@@ -616,28 +616,27 @@ impl Manifest {
                     sl.step = v;
                 }
                 if let Some(m) = &s.map {
-                    sl.map = match m.get_ref() {
-                        RawMapKind::Flow => SlicedMap::Flow,
-                        RawMapKind::Assignment if periodic => {
-                            return Err(at(
-                                Some(m.span()),
-                                "`solver.map` = \"assignment\" with kind = \"sliced\" is not \
+                    sl.map =
+                        match m.get_ref() {
+                            RawMapKind::Flow => SlicedMap::Flow,
+                            RawMapKind::Assignment if periodic => {
+                                return Err(at(
+                                    Some(m.span()),
+                                    "`solver.map` = \"assignment\" with kind = \"sliced\" is not \
                                  implemented on the torus yet (periodic inputs): remove it (the \
                                  flow's map) or use kind = \"sinkhorn\", whose maps are one to one"
-                                    .into(),
-                            ))
-                        }
-                        RawMapKind::Assignment => SlicedMap::Assignment,
-                        RawMapKind::Barycentric => {
-                            return Err(at(
+                                        .into(),
+                                ))
+                            }
+                            RawMapKind::Assignment => SlicedMap::Assignment,
+                            RawMapKind::Barycentric => return Err(at(
                                 Some(m.span()),
                                 "`solver.map` = \"barycentric\" is Sinkhorn's: kind = \"sliced\" \
                                  takes map = \"flow\" (the flow's endpoints, the default) or \
                                  \"assignment\" (snapped one to one onto the input's samples)"
                                     .into(),
-                            ))
-                        }
-                    };
+                            )),
+                        };
                 }
                 SolverSettings::Sliced(sl)
             }
@@ -1045,7 +1044,12 @@ density = "inverted"
         };
         let m = manifest(GOOD).unwrap();
         assert_eq!(sliced(&m).map, SlicedMap::Flow);
-        let with = |map: &str| GOOD.replace("kind = \"sliced\"", &format!("kind = \"sliced\"\nmap = {map}"));
+        let with = |map: &str| {
+            GOOD.replace(
+                "kind = \"sliced\"",
+                &format!("kind = \"sliced\"\nmap = {map}"),
+            )
+        };
         let flow = manifest(&with("\"flow\"")).unwrap();
         assert_eq!(sliced(&flow).map, SlicedMap::Flow);
         assert_eq!(flow.solver.fingerprint(), m.solver.fingerprint());
@@ -1055,7 +1059,10 @@ density = "inverted"
         // Each solver's own values only, at the value's line.
         let e = manifest(&with("\"barycentric\"")).unwrap_err();
         assert_eq!(e.line, 9, "{e}");
-        assert!(e.message.contains("\"flow\"") && e.message.contains("\"assignment\""), "{e}");
+        assert!(
+            e.message.contains("\"flow\"") && e.message.contains("\"assignment\""),
+            "{e}"
+        );
         let sk = GOOD.replace("kind = \"sliced\"", "kind = \"sinkhorn\"\nmap = \"flow\"");
         let e = manifest(&sk).unwrap_err();
         assert_eq!(e.line, 9, "{e}");
@@ -1064,8 +1071,11 @@ density = "inverted"
             .unwrap_err();
         assert!(e.message.contains("only to kind"), "{e}");
         // Not on the torus.
-        let e = manifest(&TEXTURES.replace("kind = \"sliced\"", "kind = \"sliced\"\nmap = \"assignment\""))
-            .unwrap_err();
+        let e = manifest(&TEXTURES.replace(
+            "kind = \"sliced\"",
+            "kind = \"sliced\"\nmap = \"assignment\"",
+        ))
+        .unwrap_err();
         assert!(e.message.contains("torus"), "{e}");
     }
 

@@ -65,38 +65,6 @@ pub fn spacings(positions: &[f32], dim: usize, wrap: Wrap) -> Vec<f32> {
         .collect()
 }
 
-/// The `k` nearest points of `points` (`n · dim`, clamped domain) to each of `queries`
-/// (`m · dim`), as indices into `points`, nearest first: `m · min(k, n)` indices, query-major.
-///
-/// For the sliced solver's snap (`solve::snap`): its candidate pairs are the nearest target
-/// samples of every flow endpoint and the nearest endpoints of every sample. The same tree and
-/// exact search as [`spacings`] (a query's own point is not excluded: queries are another cloud);
-/// equal distances keep the tree's visiting order, and each query is independent, so the result
-/// is the same for any thread count.
-pub(crate) fn nearest(points: &[f32], queries: &[f32], dim: usize, k: usize) -> Vec<u32> {
-    let n = points.len() / dim.max(1);
-    let k = k.min(n);
-    if k == 0 || dim == 0 {
-        return Vec::new();
-    }
-    let tree = SearchTree::new(points, dim);
-    let mut out = vec![0u32; queries.len() / dim * k];
-    out.par_chunks_exact_mut(k)
-        .zip(queries.par_chunks_exact(dim))
-        .with_min_len(1024)
-        .for_each_init(
-            || vec![(f32::INFINITY, u32::MAX); k],
-            |best, (o, q)| {
-                best.fill((f32::INFINITY, u32::MAX));
-                tree.search_nearest(q, best);
-                for (o, &(_, at)) in o.iter_mut().zip(best.iter()) {
-                    *o = tree.order[at as usize];
-                }
-            },
-        );
-    out
-}
-
 /// `v` folded onto `[0, 1)`.
 fn fold(v: f32) -> f32 {
     let f = v - v.floor();
@@ -112,8 +80,6 @@ struct SearchTree {
     dim: usize,
     depth: u32,
     n: u32,
-    /// Tree position → index in the caller's points.
-    order: Vec<u32>,
     /// Points in tree order.
     points: Vec<f32>,
     boxes: Vec<f32>,
@@ -131,7 +97,6 @@ impl SearchTree {
             dim,
             depth,
             n,
-            order,
             points: sorted,
             boxes,
         }
@@ -191,49 +156,6 @@ impl SearchTree {
                 }
             } else {
                 // The nearer child is searched first (pushed last).
-                let (l, r) = node.children();
-                let (dl, dr) = (self.box_distance2(l, q), self.box_distance2(r, q));
-                if dl <= dr {
-                    stack.push(r);
-                    stack.push(l);
-                } else {
-                    stack.push(l);
-                    stack.push(r);
-                }
-            }
-        }
-    }
-
-    /// [`Self::search`] keeping the points' tree positions: `best` holds (squared distance, tree
-    /// position) pairs, ascending, fixed length.
-    fn search_nearest(&self, q: &[f32], best: &mut [(f32, u32)]) {
-        let d = self.dim;
-        let last = best.len() - 1;
-        let mut stack = Vec::with_capacity(64);
-        stack.push(Node::root(self.n));
-        while let Some(node) = stack.pop() {
-            if node.count == 0 || self.box_distance2(node, q) > best[last].0 {
-                continue;
-            }
-            if node.level == self.depth {
-                let range = node.range();
-                let points = self.points[range.start * d..range.end * d].chunks_exact(d);
-                for (at, p) in (range.start as u32..).zip(points) {
-                    let mut r2 = 0.0f32;
-                    for a in 0..d {
-                        let t = p[a] - q[a];
-                        r2 += t * t;
-                    }
-                    if r2 < best[last].0 {
-                        let mut j = last;
-                        while j > 0 && best[j - 1].0 > r2 {
-                            best[j] = best[j - 1];
-                            j -= 1;
-                        }
-                        best[j] = (r2, at);
-                    }
-                }
-            } else {
                 let (l, r) = node.children();
                 let (dl, dr) = (self.box_distance2(l, q), self.box_distance2(r, q));
                 if dl <= dr {

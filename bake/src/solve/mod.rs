@@ -181,11 +181,10 @@ impl SolverSettings {
                 match s.map {
                     SlicedMap::Flow => String::new(),
                     SlicedMap::Assignment => format!(
-                        ",map=assignment(rev={},k={},eps_end={:?},max_dense_paths={})",
+                        ",map=assignment(rev={},leaf={},passes={:?})",
                         snap::REVISION,
-                        snap::NEIGHBOURS,
-                        snap::EPS_END,
-                        snap::MAX_DENSE_PATHS
+                        snap::LEAF,
+                        snap::PASSES
                     ),
                 }
             ),

@@ -111,7 +111,11 @@ pub(super) fn solve(
             let t = std::time::Instant::now();
             let snap = super::snap::snap(dim, &mapped, problem.target);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
-                eprintln!("  snap {:.2}s: {}", t.elapsed().as_secs_f64(), snap.describe());
+                eprintln!(
+                    "  snap {:.2}s: {}",
+                    t.elapsed().as_secs_f64(),
+                    snap.describe()
+                );
             }
             let mapped: Vec<f32> = snap
                 .assignment
