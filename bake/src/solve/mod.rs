@@ -111,8 +111,9 @@ pub enum SlicedMap {
     /// The flow's endpoints matched one to one onto the target samples by a min-cost assignment
     /// on a sparse nearest-neighbour graph (`snap.rs`): every point goes to a distinct sample, so
     /// a blend at unit weight is exactly the input's samples, and each moves by about a local
-    /// spacing from the flow (the report line says by how much). Costs 11–31 s per 1M-point 3D
-    /// map on the two-core build machine under load (BENCHMARKS.md). Clamped domains only.
+    /// spacing from the flow (the report line says by how much). Costs 8–17 s per 1M-point BRDF
+    /// map on the two-core build machine at load ≈ 4, about a third more CPU than the flow
+    /// (BENCHMARKS.md). Clamped domains only.
     Assignment,
 }
 
