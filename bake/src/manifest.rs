@@ -20,7 +20,8 @@
 //! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
 //! # blur_spacing = 1.5 (1.0 in 3D), scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0,
 //! # auction_eps = 0.25
-//! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0
+//! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0,
+//! # map = "flow" | "assignment" (the flow's endpoints snapped one to one onto the samples)
 //!
 //! [[input]]
 //! name = "duck"
@@ -53,7 +54,9 @@
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
-use crate::solve::{ExactSettings, MapKind, SinkhornSettings, SlicedSettings, SolverSettings};
+use crate::solve::{
+    ExactSettings, MapKind, SinkhornSettings, SlicedMap, SlicedSettings, SolverSettings,
+};
 use crate::volume::vol::VolFit;
 use crate::volume::voxelize::{Fit, MAX_MARGIN};
 use otbake_formats::storage::{Precision, Storage};
@@ -551,7 +554,7 @@ impl Manifest {
             (
                 span(s.map.as_ref().map(|v| v.span())),
                 "map",
-                &[SolverKind::Sinkhorn],
+                &[SolverKind::Sinkhorn, SolverKind::Sliced],
             ),
             (
                 span(s.auction_eps.as_ref().map(|v| v.span())),
@@ -611,6 +614,29 @@ impl Manifest {
                 }
                 if let Some(v) = real(&s.step, "step", &|v| v > 0.0 && v <= 1.0, "in (0, 1]")? {
                     sl.step = v;
+                }
+                if let Some(m) = &s.map {
+                    sl.map =
+                        match m.get_ref() {
+                            RawMapKind::Flow => SlicedMap::Flow,
+                            RawMapKind::Assignment if periodic => {
+                                return Err(at(
+                                    Some(m.span()),
+                                    "`solver.map` = \"assignment\" with kind = \"sliced\" is not \
+                                 implemented on the torus yet (periodic inputs): remove it (the \
+                                 flow's map) or use kind = \"sinkhorn\", whose maps are one to one"
+                                        .into(),
+                                ))
+                            }
+                            RawMapKind::Assignment => SlicedMap::Assignment,
+                            RawMapKind::Barycentric => return Err(at(
+                                Some(m.span()),
+                                "`solver.map` = \"barycentric\" is Sinkhorn's: kind = \"sliced\" \
+                                 takes map = \"flow\" (the flow's endpoints, the default) or \
+                                 \"assignment\" (snapped one to one onto the input's samples)"
+                                    .into(),
+                            )),
+                        };
                 }
                 SolverSettings::Sliced(sl)
             }
@@ -676,6 +702,14 @@ impl Manifest {
                     sk.map = match m.get_ref() {
                         RawMapKind::Assignment => MapKind::Assignment,
                         RawMapKind::Barycentric => MapKind::Barycentric,
+                        RawMapKind::Flow => {
+                            return Err(at(
+                                Some(m.span()),
+                                "`solver.map` = \"flow\" is the sliced solver's: kind = \
+                                 \"sinkhorn\" takes map = \"assignment\" or \"barycentric\""
+                                    .into(),
+                            ))
+                        }
                     };
                 }
                 SolverSettings::Sinkhorn(sk)
@@ -912,6 +946,7 @@ struct RawSolver {
 enum RawMapKind {
     Assignment,
     Barycentric,
+    Flow,
 }
 
 #[derive(Deserialize)]
@@ -999,6 +1034,49 @@ density = "inverted"
         assert!(e.message.contains("only to kind"), "{e}");
         let e = manifest(&GOOD.replace("kind = \"gaussian\"", "kind = \"input\"")).unwrap_err();
         assert!(e.message.contains("proxy.input"), "{e}");
+    }
+
+    #[test]
+    fn sliced_map_defaults_to_the_flow_and_takes_assignment() {
+        let sliced = |m: &Manifest| match &m.solver {
+            SolverSettings::Sliced(s) => s.clone(),
+            other => panic!("{other:?}"),
+        };
+        let m = manifest(GOOD).unwrap();
+        assert_eq!(sliced(&m).map, SlicedMap::Flow);
+        let with = |map: &str| {
+            GOOD.replace(
+                "kind = \"sliced\"",
+                &format!("kind = \"sliced\"\nmap = {map}"),
+            )
+        };
+        let flow = manifest(&with("\"flow\"")).unwrap();
+        assert_eq!(sliced(&flow).map, SlicedMap::Flow);
+        assert_eq!(flow.solver.fingerprint(), m.solver.fingerprint());
+        let a = manifest(&with("\"assignment\"")).unwrap();
+        assert_eq!(sliced(&a).map, SlicedMap::Assignment);
+        assert_ne!(a.solver.fingerprint(), m.solver.fingerprint());
+        // Each solver's own values only, at the value's line.
+        let e = manifest(&with("\"barycentric\"")).unwrap_err();
+        assert_eq!(e.line, 9, "{e}");
+        assert!(
+            e.message.contains("\"flow\"") && e.message.contains("\"assignment\""),
+            "{e}"
+        );
+        let sk = GOOD.replace("kind = \"sliced\"", "kind = \"sinkhorn\"\nmap = \"flow\"");
+        let e = manifest(&sk).unwrap_err();
+        assert_eq!(e.line, 9, "{e}");
+        assert!(e.message.contains("barycentric"), "{e}");
+        let e = manifest(&GOOD.replace("kind = \"sliced\"", "kind = \"exact\"\nmap = \"flow\""))
+            .unwrap_err();
+        assert!(e.message.contains("only to kind"), "{e}");
+        // Not on the torus.
+        let e = manifest(&TEXTURES.replace(
+            "kind = \"sliced\"",
+            "kind = \"sliced\"\nmap = \"assignment\"",
+        ))
+        .unwrap_err();
+        assert!(e.message.contains("torus"), "{e}");
     }
 
     #[test]

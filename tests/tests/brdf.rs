@@ -544,3 +544,129 @@ fn bad_brdf_inputs_are_clear_errors() {
     );
     assert!(ok.status.success());
 }
+
+/// `[solver] kind = "sliced"`, `map = "assignment"` (issue 6): at unit weights the blend's points
+/// are exactly the input's importance samples, so the blend evaluates like an archive built on
+/// those samples (what `brdf_accuracy`'s "samples" column measures: the kernel's error alone),
+/// while the flow's endpoints (`map = "flow"`) are not the samples.
+#[test]
+fn sliced_assignment_reproduces_the_inputs_samples_at_unit_weights() {
+    use otbake::archive::{MapData, ProxyData};
+    use otbake_formats::storage::Storage;
+    use otbake_formats::{Composite, Wrap};
+    use otbake_runtime::{AdaptiveKernel, Map, Proxy};
+
+    let n = 3000;
+    let (dir, flow) = synthetic("brdf-sliced-assignment", n);
+    let body = std::fs::read_to_string(dir.join("brdfs.toml"))
+        .unwrap()
+        .replace("kind = \"exact\"", "kind = \"sliced\"");
+    let flow_path = write_manifest(
+        &dir,
+        "flow.toml",
+        &body.replace("dir = \"out\"", "dir = \"flow\""),
+    );
+    let snap_path = write_manifest(
+        &dir,
+        "snap.toml",
+        &body.replace(
+            "kind = \"sliced\"",
+            "kind = \"sliced\"\nmap = \"assignment\"",
+        ),
+    );
+    drop(flow);
+    let kernel = BrdfKernel::Adaptive(AdaptiveKernel {
+        scale: 2.0,
+        min_sigma: 0.01,
+        max_sigma: 0.3,
+    });
+    let dim = 3;
+    let multiset = |points: &mut Vec<[u32; 3]>| points.sort();
+    for (path, one_to_one) in [(snap_path, true), (flow_path, false)] {
+        let m = Manifest::load(&path).unwrap();
+        bake(&m, &BakeOptions::default()).unwrap();
+        let archives = Archives::load(&m).unwrap();
+        let maps = archives.maps().unwrap();
+        let b = BrdfBlend::with_kernel(archives.proxy().unwrap(), &maps, kernel).unwrap();
+        for (which, w) in [(0usize, [1.0f32, 0.0]), (1, [0.0, 1.0])] {
+            let spec = &m.inputs[which];
+            let grid = otbake::input::load_with(&spec.path, spec.density, &spec.options).unwrap();
+            let samples = otbake::sample::importance_sample(&grid, n, spec.seed).unwrap();
+            // The blend's points at unit weight against the samples, as multisets of bits.
+            let mut got: Vec<[u32; 3]> = (0..n as u32)
+                .map(|i| {
+                    let p = b.blend.sample(&w, i).unwrap().position;
+                    [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()]
+                })
+                .collect();
+            let mut want: Vec<[u32; 3]> = samples
+                .chunks_exact(dim)
+                .map(|p| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()])
+                .collect();
+            multiset(&mut got);
+            multiset(&mut want);
+            assert_eq!(got == want, one_to_one, "{path:?} input {which}");
+            if !one_to_one {
+                continue;
+            }
+            // An archive whose points are the samples (brdf_accuracy's "samples"): the same
+            // values up to the order of the sums, so the same error against the grid.
+            let order = otbake::tree::tree_order(&samples, dim, m.proxy.leaf_size);
+            let positions = otbake::tree::permute(&samples, dim, &order);
+            let proxy = ProxyData {
+                key: [0xA5; 32],
+                dim,
+                leaf_size: m.proxy.leaf_size,
+                wrap: Wrap::Clamp,
+                positions: positions.clone(),
+                description: "the input's samples".into(),
+            }
+            .encode()
+            .unwrap();
+            let identity = MapData {
+                key: [0x5A; 32],
+                proxy_key: [0xA5; 32],
+                dim,
+                leaf_size: m.proxy.leaf_size,
+                composite: Composite::Additive,
+                mean_mass: grid.mean_mass() as f32,
+                wrap: Wrap::Clamp,
+                colors: positions
+                    .chunks_exact(dim)
+                    .flat_map(|p| grid.ratio_at(p))
+                    .collect(),
+                spacings: otbake::spacing::spacings(&positions, dim, Wrap::Clamp),
+                positions,
+                solver_report: "identity on the input's samples".into(),
+                transport_cost: 0.0,
+                storage: Storage::FULL,
+            }
+            .encode()
+            .unwrap();
+            let own = [Map::open(&identity).unwrap()];
+            let reference =
+                BrdfBlend::with_kernel(Proxy::open(&proxy).unwrap(), &own, kernel).unwrap();
+            let (mut err_map, mut err_samples) = (0.0, 0.0);
+            for &(ti, to, pd) in &interior() {
+                let got = b.eval_angles(&w, ti, to, pd).unwrap();
+                let want = reference.eval_angles(&[1.0], ti, to, pd).unwrap();
+                assert!(
+                    (got.luminance - want.luminance).abs() <= 1e-4 * want.luminance.abs().max(1e-6),
+                    "input {which} at {ti} {to} {pd}: {} vs samples {}",
+                    got.luminance,
+                    want.luminance
+                );
+                let truth = luminance(grid_value(&grid, ti, to, pd));
+                err_map += (f64::from(got.luminance) / truth - 1.0).abs();
+                err_samples += (f64::from(want.luminance) / truth - 1.0).abs();
+            }
+            let k = interior().len() as f64;
+            assert!(
+                (err_map - err_samples).abs() / k < 1e-4,
+                "input {which}: mean error {} (map) vs {} (samples)",
+                err_map / k,
+                err_samples / k
+            );
+        }
+    }
+}
