@@ -19,14 +19,12 @@
 //!
 //! Also prints how long the spacings of the samples take (what every map bake adds).
 
-use otbake::archive::{MapData, ProxyData};
 use otbake::bake::{bake, BakeOptions};
 use otbake::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
 use otbake::brdf::{grid_value, luminance};
 use otbake::manifest::Manifest;
 use otbake::render::Archives;
-use otbake_formats::storage::Storage;
-use otbake_formats::{Composite, Wrap};
+use otbake_formats::Wrap;
 use otbake_runtime::{AdaptiveKernel, Kernel, Map, Proxy};
 use std::time::Instant;
 
@@ -80,35 +78,8 @@ fn main() -> anyhow::Result<()> {
     let positions = otbake::tree::permute(&samples, dim, &order);
     let spacings = otbake::spacing::spacings(&positions, dim, Wrap::Clamp);
     let spacing_seconds = t.elapsed().as_secs_f64();
-    let proxy = ProxyData {
-        key: [0xA5; 32],
-        dim,
-        leaf_size: m.proxy.leaf_size,
-        wrap: Wrap::Clamp,
-        positions: positions.clone(),
-        description: "the input's samples".into(),
-    }
-    .encode()?;
-    let colors: Vec<f32> = positions
-        .chunks_exact(dim)
-        .flat_map(|p| grid.ratio_at(p))
-        .collect();
-    let identity = MapData {
-        key: [0x5A; 32],
-        proxy_key: [0xA5; 32],
-        dim,
-        leaf_size: m.proxy.leaf_size,
-        composite: Composite::Additive,
-        mean_mass: grid.mean_mass() as f32,
-        wrap: Wrap::Clamp,
-        positions,
-        colors,
-        spacings,
-        solver_report: "identity on the input's samples".into(),
-        transport_cost: 0.0,
-        storage: Storage::FULL,
-    }
-    .encode()?;
+    let (proxy, identity) =
+        otbake::archive::identity_archives(&grid, dim, m.proxy.leaf_size, positions, spacings)?;
     let own = [Map::open(&identity)?];
 
     let mut unit = vec![0.0f32; maps.len()];

@@ -133,3 +133,49 @@ pub fn load_proxy_positions(path: &Path, key: &[u8; 32]) -> Option<ProxyData> {
         description: p.description.to_string(),
     })
 }
+
+/// The archives (proxy, map) of the identity map on points of `grid`: a proxy whose points are
+/// `positions` (already in tree order, with their `spacings`) and a map that leaves each of them
+/// where it is, carrying the grid's colour ratios, stored in full.
+///
+/// Why: blended at weight 1 it is what *any* one-to-one map onto these points gives, so it measures
+/// a reconstruction kernel's error alone, apart from any map's (`brdf_accuracy`'s "samples" rows and
+/// the BRDF tests). The keys are fixed, since these archives are built in memory and never cached.
+pub fn identity_archives(
+    grid: &crate::input::Grid,
+    dim: usize,
+    leaf_size: u32,
+    positions: Vec<f32>,
+    spacings: Vec<f32>,
+) -> Result<(AlignedVec<16>, AlignedVec<16>), WriteError> {
+    let proxy = ProxyData {
+        key: [0xA5; 32],
+        dim,
+        leaf_size,
+        wrap: Wrap::Clamp,
+        positions: positions.clone(),
+        description: "the input's samples".into(),
+    }
+    .encode()?;
+    let colors: Vec<f32> = positions
+        .chunks_exact(dim)
+        .flat_map(|p| grid.ratio_at(p))
+        .collect();
+    let map = MapData {
+        key: [0x5A; 32],
+        proxy_key: [0xA5; 32],
+        dim,
+        leaf_size,
+        composite: Composite::Additive,
+        mean_mass: grid.mean_mass() as f32,
+        wrap: Wrap::Clamp,
+        positions,
+        colors,
+        spacings,
+        solver_report: "identity on the input's samples".into(),
+        transport_cost: 0.0,
+        storage: Storage::FULL,
+    }
+    .encode()?;
+    Ok((proxy, map))
+}

@@ -551,9 +551,7 @@ fn bad_brdf_inputs_are_clear_errors() {
 /// while the flow's endpoints (`map = "flow"`) are not the samples.
 #[test]
 fn sliced_assignment_reproduces_the_inputs_samples_at_unit_weights() {
-    use otbake::archive::{MapData, ProxyData};
-    use otbake_formats::storage::Storage;
-    use otbake_formats::{Composite, Wrap};
+    use otbake_formats::Wrap;
     use otbake_runtime::{AdaptiveKernel, Map, Proxy};
 
     let n = 3000;
@@ -613,35 +611,14 @@ fn sliced_assignment_reproduces_the_inputs_samples_at_unit_weights() {
             // values up to the order of the sums, so the same error against the grid.
             let order = otbake::tree::tree_order(&samples, dim, m.proxy.leaf_size);
             let positions = otbake::tree::permute(&samples, dim, &order);
-            let proxy = ProxyData {
-                key: [0xA5; 32],
+            let spacings = otbake::spacing::spacings(&positions, dim, Wrap::Clamp);
+            let (proxy, identity) = otbake::archive::identity_archives(
+                &grid,
                 dim,
-                leaf_size: m.proxy.leaf_size,
-                wrap: Wrap::Clamp,
-                positions: positions.clone(),
-                description: "the input's samples".into(),
-            }
-            .encode()
-            .unwrap();
-            let identity = MapData {
-                key: [0x5A; 32],
-                proxy_key: [0xA5; 32],
-                dim,
-                leaf_size: m.proxy.leaf_size,
-                composite: Composite::Additive,
-                mean_mass: grid.mean_mass() as f32,
-                wrap: Wrap::Clamp,
-                colors: positions
-                    .chunks_exact(dim)
-                    .flat_map(|p| grid.ratio_at(p))
-                    .collect(),
-                spacings: otbake::spacing::spacings(&positions, dim, Wrap::Clamp),
+                m.proxy.leaf_size,
                 positions,
-                solver_report: "identity on the input's samples".into(),
-                transport_cost: 0.0,
-                storage: Storage::FULL,
-            }
-            .encode()
+                spacings,
+            )
             .unwrap();
             let own = [Map::open(&identity).unwrap()];
             let reference =
