@@ -126,8 +126,9 @@ struct Chunk {
     sq: [[f32; N]; 6],
     /// Their factors.
     g: [[f32; N]; 6],
-    /// Middle cells (x, y), global.
-    mid: [[u32; N]; 2],
+    /// Each block's first cell, column then row (`mx − 1`, `my − 1` for the middle cell
+    /// `(mx, my)`), in the region.
+    at: [[u32; N]; 2],
     /// Whether the block holds every cell the point counts and its `[cm, 1]` is non-negative
     /// and finite (else: the general path).
     ok: [u32; N],
@@ -162,7 +163,7 @@ impl Chunk {
             cv,
             sq,
             g,
-            mid,
+            at,
             ok,
             w,
             ..
@@ -176,8 +177,8 @@ impl Chunk {
                 sq[j][p] = sx[j];
                 sq[3 + j][p] = sy[j];
             }
-            mid[0][p] = int(mx);
-            mid[1][p] = int(my);
+            at[0][p] = int(mx).wrapping_sub(1 + cx.x.first);
+            at[1][p] = int(my).wrapping_sub(1 + cx.y.first);
             ok[p] = (okx & oky) as u32;
         }
         // Every factor of the chunk in one vector loop.
@@ -220,40 +221,42 @@ impl Chunk {
                 *ok &= v.iter().fold(true, |a, c| a & (c.to_bits() < INF)) as u32;
             }
         }
-        let (s4, span) = (cx.stride * 4, cx.stride * 8 + 12);
+        // The region's cells as 4-wide vectors; a block is the `2·stride + 3` of them from its
+        // first cell, its rows three each from offsets 0, `stride` and `2·stride`. The stride (at
+        // most `MAX_RES`, [`fits`]) is a `u32` so that the compiler sees these sums cannot
+        // overflow: one bounds check per block, which never fails (blocks are moved inside the
+        // region), and none per row.
+        let (cells, _) = out.cells.as_chunks_mut::<4>();
+        let stride = cx.stride as u32 as usize;
+        let span = 2 * stride + 3;
         for p in 0..len {
             if ok[p] == 0 {
                 let (x, y) = (pos[2 * p], pos[2 * p + 1]);
                 let cm = [cv[p][0], cv[p][1], cv[p][2]];
-                splat_point(cx.axes, &[x, y], &cm, cx.kp, cx.radius, cx.scale, out);
+                let mut rest = Rgba {
+                    cells: cells.as_flattened_mut(),
+                };
+                splat_point(cx.axes, &[x, y], &cm, cx.kp, cx.radius, cx.scale, &mut rest);
                 continue;
             }
             let cv = cv[p];
-            // The block's three rows of three cells (in the region: blocks are moved inside it,
-            // so the checks below never fail).
-            let at = (mid[1][p].wrapping_sub(1 + cx.y.first) as usize)
-                .wrapping_mul(cx.stride)
-                .wrapping_add(mid[0][p].wrapping_sub(1 + cx.x.first) as usize)
-                .wrapping_mul(4);
-            let Some(block) = out.cells.get_mut(at..at.wrapping_add(span)) else {
+            let at = (at[1][p] as usize) * stride + at[0][p] as usize;
+            let Some(block) = cells.get_mut(at..at + span) else {
                 continue;
             };
-            let Some((r0, rest)) = block.split_at_mut_checked(s4) else {
-                continue;
-            };
-            let Some((r1, r2)) = rest.split_at_mut_checked(s4) else {
-                continue;
-            };
-            for (j, row) in [r0, r1, r2].into_iter().enumerate() {
-                let Some(cells) = row.first_chunk_mut::<12>() else {
+            for j in 0..3 {
+                let Some(row) = block
+                    .get_mut(j * stride..j * stride + 3)
+                    .and_then(|r| <&mut [[f32; 4]; 3]>::try_from(r).ok())
+                else {
                     continue;
                 };
-                for i in 0..3 {
+                for (i, cell) in row.iter_mut().enumerate() {
                     // `cm · w` and the density's `1 · w = w`: a dropped cell's `−0.0` times a
                     // non-negative finite factor is `−0.0`, which changes no float.
                     let w = w[3 * j + i][p];
                     for ch in 0..4 {
-                        cells[4 * i + ch] += cv[ch] * w;
+                        cell[ch] += cv[ch] * w;
                     }
                 }
             }
@@ -287,7 +290,7 @@ pub(crate) fn splat(
         cv: [[0.0; 4]; N],
         sq: [[0.0; N]; 6],
         g: [[0.0; N]; 6],
-        mid: [[0; N]; 2],
+        at: [[0; N]; 2],
         ok: [0; N],
         w: [[0.0; N]; 9],
     };
