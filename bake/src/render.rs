@@ -8,13 +8,12 @@
 //! through `otbake-runtime`, exactly as an engine would, so the images are a test of the runtime
 //! too.
 
-use crate::fsio::{read_aligned, IoError};
+use crate::fsio::{read_archive, ArchiveBytes, IoError};
 use crate::imageio::Rgba;
 use crate::manifest::Manifest;
 use otbake_formats::Composite;
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, Proxy, Region, MAX_DIM};
 use rayon::prelude::*;
-use rkyv::util::AlignedVec;
 
 /// How an image is reconstructed from the blended points.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -63,18 +62,18 @@ pub enum RenderError {
 
 /// Archive bytes of a manifest's proxy and maps, loaded once and opened as often as needed.
 pub struct Archives {
-    proxy: AlignedVec<16>,
-    maps: Vec<(String, AlignedVec<16>)>,
+    proxy: ArchiveBytes,
+    maps: Vec<(String, ArchiveBytes)>,
 }
 
 impl Archives {
     /// Reads the proxy and every map of a (baked) manifest.
     pub fn load(m: &Manifest) -> Result<Self, RenderError> {
-        let proxy = read_aligned(&m.proxy_archive())?;
+        let proxy = read_archive(&m.proxy_archive())?;
         let maps = m
             .inputs
             .iter()
-            .map(|i| Ok((i.name.clone(), read_aligned(&m.map_archive(&i.name))?)))
+            .map(|i| Ok((i.name.clone(), read_archive(&m.map_archive(&i.name))?)))
             .collect::<Result<_, IoError>>()?;
         Ok(Self { proxy, maps })
     }
