@@ -240,8 +240,11 @@ impl Chunk {
                 continue;
             }
             let cv = cv[p];
-            let at = (at[1][p] as usize) * stride + at[0][p] as usize;
-            let Some(block) = cells.get_mut(at..at + span) else {
+            // Wrapping, like the corners: a (never seen) wrapped block fails the check below.
+            let at = (at[1][p] as usize)
+                .wrapping_mul(stride)
+                .wrapping_add(at[0][p] as usize);
+            let Some(block) = cells.get_mut(at..at.wrapping_add(span)) else {
                 continue;
             };
             for j in 0..3 {
