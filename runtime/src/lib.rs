@@ -31,6 +31,12 @@
 //! The crate is `#![no_std]`, never allocates, contains no `unsafe`, and returns an error (never
 //! panics) for any archive bytes, weights or coordinates.
 //!
+//! Speed depends on two choices the caller makes. Whole-image splats stream every map (a 256²
+//! splat of four 250K-point maps reads 20 MB), so archive bytes on 2 MB pages (the baker's
+//! renderer maps them with `MADV_HUGEPAGE`) take a tenth off a splat; and without `unsafe` the
+//! crate cannot pick vector instructions at run time, so the target it is compiled for counts:
+//! x86-64-v3 (AVX2) splats about a fifth faster than baseline SSE2 (BENCHMARKS.md).
+//!
 //! ```
 //! # use otbake_formats::{proxy::Proxy as ProxyData, tree, write};
 //! # fn archives() -> (rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>, rkyv::util::AlignedVec<16>) {
