@@ -27,7 +27,7 @@ pub enum Format {
 pub struct PlannedAction {
     /// `proxy` or the input name.
     pub id: String,
-    /// Command line (argv[0] is the otbake executable).
+    /// Command line (`argv[0]` is the otbake executable).
     pub argv: Vec<String>,
     /// Every file the action reads.
     pub inputs: Vec<PathBuf>,

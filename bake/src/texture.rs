@@ -54,7 +54,7 @@ impl WeightField {
         })
     }
 
-    /// The weights of `k` inputs at image position (`u`, `v`) in [0,1]² (written into `out`).
+    /// The weights of `k` inputs at image position (`u`, `v`) in `[0,1]²` (written into `out`).
     pub fn weights(&self, k: usize, u: f32, v: f32, out: &mut [f32]) {
         match self {
             Self::Constant(w) => out.copy_from_slice(&w[..k]),

@@ -29,7 +29,7 @@ use crate::stack::Stack;
 use crate::MAX_DIM;
 use otbake_formats::tree::Node;
 
-/// A box of cells of a regular grid over [0,1]^d whose cell `idx` has its center at
+/// A box of cells of a regular grid over `[0,1]^d` whose cell `idx` has its center at
 /// `(idx + 0.5) / res` per axis. Region buffers hold the region's cells only, axis 0 fastest.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Region {

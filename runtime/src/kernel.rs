@@ -7,7 +7,7 @@ pub const TRUNCATION: f32 = 3.0;
 /// A Gaussian reconstruction kernel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Kernel {
-    /// Standard deviation in domain units ([0,1] per axis).
+    /// Standard deviation in domain units (`[0,1]` per axis).
     pub sigma: f32,
 }
 

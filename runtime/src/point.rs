@@ -31,12 +31,12 @@ pub(crate) fn box_distance2(p: &[f32], lo: &[f32], hi: &[f32]) -> f32 {
 }
 
 impl Blend<'_, '_> {
-    /// Density, mass and color of the blend for `weights` at `p` (`dim()` coordinates in [0,1]).
+    /// Density, mass and color of the blend for `weights` at `p` (`dim()` coordinates in `[0,1]`).
     ///
     /// Visits only nodes whose blended box lies within 3σ of `p`. Kernel sums are accumulated in
     /// `f32`: a query sums at most a few hundred terms of similar size. On a periodic blend `p` is
     /// a point of the torus (any coordinates; they are folded into `[0,1)`) and the kernel wraps
-    /// around it ([`crate::periodic`]).
+    /// around it (module `periodic`).
     pub fn point(&self, weights: &[f32], p: &[f32], kernel: Kernel) -> Result<PointValue, Error> {
         self.check_weights(weights)?;
         let q = self.point_arg(p)?;

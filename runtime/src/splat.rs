@@ -44,7 +44,7 @@ use crate::MAX_DIM;
 /// dimensions. Point queries and `Prepared::point_grid` are exact: use them where bits matter.
 pub const SPLAT_TERM_TOLERANCE: f32 = 1e-5;
 
-/// A caller-owned grid over [0,1]^d to splat into. Cell `idx` has its center at `(idx + 0.5) / res`
+/// A caller-owned grid over `[0,1]^d` to splat into. Cell `idx` has its center at `(idx + 0.5) / res`
 /// per axis; axis 0 varies fastest in the buffers.
 pub struct SplatTarget<'b> {
     /// Cells per axis; entries past the blend's dimension are ignored.

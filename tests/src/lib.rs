@@ -97,7 +97,7 @@ pub fn write_manifest(dir: &Path, name: &str, body: &str) -> PathBuf {
     p
 }
 
-/// An axis-aligned Gaussian density in [0,1]², as a linear gray EXR image of `size`² pixels.
+/// An axis-aligned Gaussian density in `[0,1]²`, as a linear gray EXR image of `size`² pixels.
 /// The luminance at pixel centre c is exp(-½ Σ ((c_k − mean_k)/sigma_k)²).
 pub fn write_gaussian_exr(path: &Path, size: usize, mean: [f64; 2], sigma: [f64; 2]) {
     let mut img = Rgba::filled(size, size, [0.0, 0.0, 0.0, 1.0]);

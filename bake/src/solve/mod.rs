@@ -288,7 +288,7 @@ pub fn solve(problem: &Problem<'_>, settings: &SolverSettings) -> Result<Solutio
 
 /// Solves the transport problem in the domain `wrap`: [`Wrap::Clamp`] is [`solve`];
 /// [`Wrap::Periodic`] transports on the flat torus `[0,1)^d` (cost: squared distance to the nearest
-/// image, [`cost`]), and the map's `mapped` points are *lifts* `source_i + δ_i` with `δ_i` the
+/// image, `cost`), and the map's `mapped` points are *lifts* `source_i + δ_i` with `δ_i` the
 /// shortest displacement (`|δ_i| <= ½` per axis, see `otbake_formats::Wrap`), so interpolating them
 /// follows the torus geodesic; the report's cost is the torus cost.
 ///

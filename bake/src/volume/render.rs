@@ -3,7 +3,7 @@
 //!
 //! * [`render`]: a ray-marched image of one blend; [`render_triangle`]: a triangle of 3-way blends
 //!   (Fig. 11) as one image.
-//! * [`slice`]: the blend's values on an axis-aligned plane, as a grey image.
+//! * [`slice()`]: the blend's values on an axis-aligned plane, as a grey image.
 //! * [`export`]: the blend tabulated on a `res³` grid as a Mitsuba `.vol` file.
 //!
 //! Each mixes the weights once ([`otbake_runtime::Blend::prepare`]) and then queries the
@@ -154,7 +154,7 @@ pub enum Axis {
     Z,
 }
 
-/// What [`slice`] shows.
+/// What [`slice()`] shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SliceSettings {
     /// The axis the plane is perpendicular to.

@@ -70,15 +70,15 @@ impl MapKind {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SinkhornSettings {
     /// Final blur (ε = blur²) in coordinate units. `None`: `blur_spacing` × the mean point
-    /// spacing (V/n)^(1/d) of the denser cloud, V its occupied volume ([`point_spacing`]).
+    /// spacing (V/n)^(1/d) of the denser cloud, V its occupied volume (`point_spacing`).
     pub blur: Option<f64>,
     /// Final blur as a multiple of the mean point spacing, when `blur` is not given. `None`:
-    /// [`DEFAULT_BLUR_SPACING`] for the dimension.
+    /// `DEFAULT_BLUR_SPACING` for the dimension.
     pub blur_spacing: Option<f64>,
     /// Blur ratio between consecutive stages, in (0, 1).
     pub scaling: f64,
     /// Marginal error (L1, total mass 1) the final stage iterates to; earlier stages go to
-    /// [`STAGE_TOLERANCE`] × this. Earlier stages must be converged *more* tightly: a loosely
+    /// `STAGE_TOLERANCE` × this. Earlier stages must be converged *more* tightly: a loosely
     /// converged stage hands the next, smaller ε a potential whose error is low-frequency, which
     /// Sinkhorn at small ε removes very slowly (measured: stage tolerance 1e-2 before a final 1e-3
     /// stage left that stage stalled at 2e-3 after 2000 iterations). Default 1e-3. 3e-3 was 20%
@@ -87,7 +87,7 @@ pub struct SinkhornSettings {
     /// its support could not match, whose price war ran out of budget and fell back to the
     /// barycentric map (51 s instead of 10). At 1e-3 every shape and seed measured matched with no
     /// fallback (BENCHMARKS.md). With `map = "assignment"` the final stage goes to at most 1e-3
-    /// whatever this says ([`ASSIGNMENT_TOLERANCE`]).
+    /// whatever this says (`ASSIGNMENT_TOLERANCE`).
     pub tolerance: f64,
     /// Iterations allowed per stage. Intermediate stages that hit it go on (the next stage starts
     /// from their potentials, and the report counts them); the final stage must converge.
