@@ -235,10 +235,10 @@ thread_local! {
 /// First rows of `bands` horizontal bands of an image `h` rows high holding about equally many
 /// blended points, then `h`: the splat's work is per point. Counted from the blend's node boxes at
 /// a coarse level of the tree (at most 64 nodes, each node's points spread evenly over the rows
-/// its box covers; it runs before the bands start, so its box reads, which miss the cache after a
-/// render, are on the render's critical path: at 256 nodes they were 2% of a two-thread splat render's CPU samples, and 64
-/// split the shapes' blend at the same row), equal bands where the tree has no internal node.
-/// Bands may be empty.
+/// its box covers); equal bands where the tree has no internal node. Bands may be empty. This runs
+/// before the bands start, and its box reads miss the cache after a render, so it is on the
+/// render's critical path: at 256 nodes it was 2% of a two-thread splat render's CPU samples, and
+/// 64 split the shapes' blend at the same row.
 fn balanced_bands(maps: &[Map<'_>], weights: &[f32], h: usize, bands: usize) -> Vec<usize> {
     let bands = bands.clamp(1, h.max(1));
     let equal = || (0..=bands).map(|b| b * h / bands).collect();
