@@ -22,6 +22,7 @@ use crate::sample;
 use crate::solve::{self, Problem};
 use crate::store::{self, Store};
 use crate::volume::voxelize::Fit;
+use otbake_formats::torus::fold;
 use otbake_formats::{ArchiveKind, Composite, Wrap};
 use rayon::prelude::*;
 use rkyv::util::AlignedVec;
@@ -554,16 +555,6 @@ fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, Bak
         positions: crate::tree::permute(&points, dim, &order),
         description: describe_proxy(m),
     })
-}
-
-/// `v` folded onto the circle `[0, 1)`.
-fn fold(v: f32) -> f32 {
-    let f = v - v.floor();
-    if f >= 1.0 {
-        0.0
-    } else {
-        f
-    }
 }
 
 fn build_map(

@@ -17,6 +17,7 @@
 //! independent and exact (a k-d tree with box pruning), so the result is the same for any thread
 //! count.
 
+use otbake_formats::torus::fold;
 use otbake_formats::tree::{depth, fill_node_boxes, node_count, Node};
 use otbake_formats::{Wrap, MAX_DIM};
 use rayon::prelude::*;
@@ -63,16 +64,6 @@ pub fn spacings(positions: &[f32], dim: usize, wrap: Wrap) -> Vec<f32> {
             (f64::from(r2).sqrt() * factor) as f32
         })
         .collect()
-}
-
-/// `v` folded onto `[0, 1)`.
-fn fold(v: f32) -> f32 {
-    let f = v - v.floor();
-    if f >= 1.0 {
-        0.0
-    } else {
-        f
-    }
 }
 
 /// A k-d tree over points (median splits of `crate::tree`) with the box of every node.

@@ -39,6 +39,7 @@ pub mod open;
 pub mod proxy;
 pub mod spacing;
 pub mod storage;
+pub mod torus;
 pub mod tree;
 pub mod view;
 #[cfg(feature = "write")]

@@ -26,6 +26,7 @@ use crate::kernel::{self, Kernel};
 use crate::point::{self, PointValue};
 use crate::range::{self, RangeValue};
 use crate::MAX_DIM;
+use otbake_formats::torus::{floor_f32, fold};
 use otbake_formats::tree::Node;
 use otbake_formats::{Wrap, LIFT_MAX, LIFT_MIN};
 
@@ -84,31 +85,6 @@ impl<S: Source> Source for Shifted<'_, S> {
     #[inline]
     fn node_color(&self, node: Node) -> [f32; 3] {
         self.inner.node_color(node)
-    }
-}
-
-/// `floor(v)` for any `f32`, as an `f32` (`core` has no float rounding without `std`). Values of
-/// magnitude `2^23` and more (and NaN, infinities) are returned unchanged: they are integers.
-pub(crate) fn floor(v: f32) -> f32 {
-    if v.is_nan() || v.abs() >= 8_388_608.0 {
-        return v;
-    }
-    let t = v as i32 as f32;
-    if t > v {
-        t - 1.0
-    } else {
-        t
-    }
-}
-
-/// `v` folded onto the circle `[0, 1)` (NaN stays NaN; callers pass finite values).
-pub(crate) fn fold(v: f32) -> f32 {
-    let f = v - floor(v);
-    // `v − floor(v)` rounds up to exactly 1 for tiny negative `v`: that point is 0 on the circle.
-    if f >= 1.0 {
-        0.0
-    } else {
-        f
     }
 }
 
@@ -183,8 +159,8 @@ fn axis_range(rlo: f32, rhi: f32, qlo: f32, qhi: f32, reach: f32) -> (i32, i32) 
         rlo.clamp(LIFT_MIN - 1.0, LIFT_MAX + 1.0),
         rhi.clamp(LIFT_MIN - 1.0, LIFT_MAX + 1.0),
     );
-    let a = floor(rlo - qhi - reach).clamp(-16.0, 16.0) as i32 - 1;
-    let b = -floor(-(rhi - qlo + reach)).clamp(-16.0, 16.0) as i32 + 1;
+    let a = floor_f32(rlo - qhi - reach).clamp(-16.0, 16.0) as i32 - 1;
+    let b = -floor_f32(-(rhi - qlo + reach)).clamp(-16.0, 16.0) as i32 + 1;
     (a, b)
 }
 
@@ -298,7 +274,7 @@ pub(crate) fn range(
             lo[k] = f32::NEG_INFINITY;
             hi[k] = f32::INFINITY;
         } else {
-            let t = floor(lo[k]);
+            let t = floor_f32(lo[k]);
             lo[k] -= t;
             hi[k] -= t;
             (mlo[k], mhi[k]) = axis_range(rlo[k], rhi[k], lo[k], hi[k], 0.0);
@@ -396,10 +372,10 @@ mod tests {
 
     #[test]
     fn fold_and_floor() {
-        assert_eq!(floor(-0.5), -1.0);
-        assert_eq!(floor(2.0), 2.0);
-        assert_eq!(floor(-3.0), -3.0);
-        assert_eq!(floor(1e20), 1e20);
+        assert_eq!(floor_f32(-0.5), -1.0);
+        assert_eq!(floor_f32(2.0), 2.0);
+        assert_eq!(floor_f32(-3.0), -3.0);
+        assert_eq!(floor_f32(1e20), 1e20);
         assert_eq!(fold(1.25), 0.25);
         assert_eq!(fold(-0.25), 0.75);
         assert_eq!(fold(-1e-9), 0.0);

@@ -34,6 +34,7 @@ use super::cost::{det_sum, lift};
 use super::rng::SplitMix64;
 use super::sliced::{key_value, order_key, radix_sort, Direction};
 use super::{Problem, Report, SlicedSettings, Solution, SolveError};
+use otbake_formats::torus::shortest;
 use rayon::prelude::*;
 
 const NAME: &str = "sliced";
@@ -263,7 +264,7 @@ impl Window {
                 for (d, theta) in dirs.iter().zip(basis.chunks_exact(dim)) {
                     move_a += d.xp[i] * theta[a];
                 }
-                *pa += step * (move_a - (move_a + 0.5).floor());
+                *pa += step * shortest(move_a);
             }
         });
     }
@@ -455,7 +456,7 @@ pub(crate) fn circular_sliced_w2(
                 .map(|(p, q)| q - p)
                 .collect();
             let sw = det_sum(n, |i| {
-                let d = d[i] - (d[i] + 0.5).floor();
+                let d = shortest(d[i]);
                 d * d
             }) / n as f64;
             let n2 = theta.iter().map(|v| v * v).sum::<i64>() as f64;

@@ -46,17 +46,7 @@ pub(crate) fn sq_dist(a: &[f32], b: &[f32]) -> f64 {
         .sum()
 }
 
-/// The shortest displacement from `from` to `to` along one axis: `to − from`, or on the torus the
-/// representative of `to − from` modulo 1 in `[−½, ½)` (so `from + delta` is the nearest image of
-/// `to`, and a map's lift `x + delta(x, T(x))` follows the geodesic).
-#[inline]
-pub(crate) fn delta(wrap: Wrap, from: f64, to: f64) -> f64 {
-    let d = to - from;
-    match wrap {
-        Wrap::Clamp => d,
-        Wrap::Periodic => d - (d + 0.5).floor(),
-    }
-}
+pub(crate) use otbake_formats::torus::delta;
 
 /// Squared distance between two `f32` points in the domain's metric, in f64.
 #[inline]
@@ -139,10 +129,7 @@ pub(crate) fn lift(dim: usize, source: &[f32], mapped: &mut [f32]) {
         .par_chunks_mut(dim)
         .zip(source.par_chunks(dim))
         .for_each(|(m, s)| {
-            for (mk, &sk) in m.iter_mut().zip(s) {
-                let d = delta(Wrap::Periodic, f64::from(sk), f64::from(*mk));
-                *mk = (f64::from(sk) + d) as f32;
-            }
+            otbake_formats::torus::lift_point(s, m);
         });
 }
 
