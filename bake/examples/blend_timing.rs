@@ -11,8 +11,8 @@
 //! `prepare`; and the mixing's two halves on two threads), so figures are comparable within one
 //! run. On a loaded machine compare the fastest walls and the CPU times.
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake_runtime::{Blend, Kernel, PointValue, PreparedBuffers, Region};
 use std::time::Instant;

@@ -19,10 +19,10 @@
 //!
 //! Also prints how long the spacings of the samples take (what every map bake adds).
 
-use otbake::bake::{bake, BakeOptions};
-use otbake::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
-use otbake::brdf::{grid_value, luminance};
+use otbake::input::brdf::{grid_value, luminance};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
+use otbake::render::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
 use otbake::render::Archives;
 use otbake_formats::Wrap;
 use otbake_runtime::{AdaptiveKernel, Kernel, Map, Proxy};
@@ -78,8 +78,13 @@ fn main() -> anyhow::Result<()> {
     let positions = otbake::tree::permute(&samples, dim, &order);
     let spacings = otbake::spacing::spacings(&positions, dim, Wrap::Clamp);
     let spacing_seconds = t.elapsed().as_secs_f64();
-    let (proxy, identity) =
-        otbake::archive::identity_archives(&grid, dim, m.proxy.leaf_size, positions, spacings)?;
+    let (proxy, identity) = otbake::pipeline::archive::identity_archives(
+        &grid,
+        dim,
+        m.proxy.leaf_size,
+        positions,
+        spacings,
+    )?;
     let own = [Map::open(&identity)?];
 
     let mut unit = vec![0.0f32; maps.len()];

@@ -11,10 +11,10 @@
 //! `Blend::sample` alone. ROUNDS (default 2) repeats
 //! the fixed/adaptive pair, alternating, so that load from other processes hits both alike.
 
-use otbake::bake::{bake, BakeOptions};
-use otbake::brdf::direction;
-use otbake::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
+use otbake::input::brdf::direction;
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
+use otbake::render::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
 use otbake::render::Archives;
 use otbake_runtime::{AdaptiveKernel, Kernel};
 use std::time::Instant;

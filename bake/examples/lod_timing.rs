@@ -6,8 +6,8 @@
 //! cargo run --release --example lod_timing -- manifests/terrain.toml
 //! ```
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::Archives;
 use otbake_runtime::{Blend, Kernel};
 use std::time::Instant;

@@ -12,11 +12,11 @@
 //! looks like any other pair of columns). Blends are every pair at ½/½ and all inputs at equal
 //! weights.
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
+use otbake::render::texture::{render_texture, WeightField};
 use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake::seam::{seam, seam_of_file, spread, Seam};
-use otbake::texture::{render_texture, WeightField};
 
 fn row(name: &str, s: Seam, noise: Option<Seam>) {
     let noise = noise.map_or("—".to_string(), |n| {

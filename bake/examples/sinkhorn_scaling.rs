@@ -10,12 +10,12 @@
 //! exact solver and prints the cost ratio and the L2-UVP of the Sinkhorn map against the exact
 //! matching. `OTBAKE_TRACE=1` prints every stage.
 
+use otbake::input::mesh::voxelize::{self, MeshOptions};
 use otbake::input::{load, DensityChannel};
 use otbake::proxy::{proxy_points, ProxyShape};
 use otbake::sample::importance_sample;
 use otbake::solve::metrics::l2_uvp;
 use otbake::solve::{solve, ExactSettings, Problem, SinkhornSettings, SolverSettings};
-use otbake::volume::voxelize::{self, MeshOptions};
 use std::time::Instant;
 
 fn main() {

@@ -12,8 +12,8 @@
 //! the time `Blend::prepare` takes (decoding included) and a `Blend::point` call takes on the fly
 //! (decoding per read; 2000 calls at random points, σ as in the grid).
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::Archives;
 use otbake_formats::storage::{Precision, Storage};
 use otbake_formats::tree;

@@ -11,10 +11,10 @@
 //! reports its wall time. Also reports each map's accuracy: the share of its points that land in
 //! empty cells of its input's grid (or outside the cube).
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
+use otbake::render::volume::{render_triangle, RenderSettings, DEFAULT_SIGMA};
 use otbake::render::Archives;
-use otbake::volume::render::{render_triangle, RenderSettings, DEFAULT_SIGMA};
 use otbake_runtime::{Blend, Kernel};
 use std::time::Instant;
 
@@ -90,7 +90,7 @@ fn main() -> anyhow::Result<()> {
     println!("  (checksum {sink:.3})");
     let mut single = vec![0f32; sizes.total()];
     for (i, spec) in m.inputs.iter().enumerate() {
-        let grid = otbake::bake::load_input(spec)?;
+        let grid = otbake::pipeline::bake::load_input(spec)?;
         // The map's points: the blend with weight 1 on this input.
         let mut e = vec![0.0; k];
         e[i] = 1.0;

@@ -1,10 +1,12 @@
 //! The `otbake` command line.
 
+mod cli;
+
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use otbake::bake::{bake, bake_one, Action, BakeOptions, Status};
-use otbake::imageio::write_image;
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, bake_one, Action, BakeOptions, Status};
+use otbake::render::imageio::write_image;
 use otbake::render::{render, render_grid, Archives, Method, RenderSettings};
 use std::path::{Path, PathBuf};
 
@@ -84,8 +86,8 @@ enum Command {
         /// Manifest file.
         manifest: PathBuf,
         /// Output format.
-        #[arg(long, value_enum, default_value_t = otbake::plan::Format::Ninja)]
-        format: otbake::plan::Format,
+        #[arg(long, value_enum, default_value_t = otbake::pipeline::plan::Format::Ninja)]
+        format: otbake::pipeline::plan::Format,
     },
     /// Compress an archive with zstd for storage or transfer (the runtime reads uncompressed bytes).
     Pack {
@@ -142,8 +144,8 @@ enum Command {
         /// Manifest file.
         manifest: PathBuf,
         /// Weight field: `perlin:SCALE,SEED`, `zigzag`, or constant weights `a,b,..`.
-        #[arg(long, value_parser = otbake::texture::WeightField::parse)]
-        weights: otbake::texture::WeightField,
+        #[arg(long, value_parser = otbake::render::texture::WeightField::parse)]
+        weights: otbake::render::texture::WeightField,
         /// Image size WxH in pixels.
         #[arg(long, default_value = "512x512", value_parser = parse_size)]
         size: (usize, usize),
@@ -192,7 +194,7 @@ enum Command {
         #[arg(long, conflicts_with = "scale")]
         sigma: Option<f32>,
         /// Width of the adaptive kernel in local spacings of the blend.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        #[arg(long, default_value_t = otbake::render::brdf::eval::DEFAULT_ADAPTIVE.scale)]
         scale: f32,
         /// Exposure (default: 99th percentile of the disk's luminance → 1).
         #[arg(long)]
@@ -216,7 +218,7 @@ enum Command {
         #[arg(long, conflicts_with = "scale")]
         sigma: Option<f32>,
         /// Width of the adaptive kernel in local spacings of the blend.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        #[arg(long, default_value_t = otbake::render::brdf::eval::DEFAULT_ADAPTIVE.scale)]
         scale: f32,
         /// Output image (.png or .exr).
         #[arg(short, long)]
@@ -239,7 +241,7 @@ enum Command {
         #[arg(long, conflicts_with = "scale")]
         sigma: Option<f32>,
         /// Width of the adaptive kernel in local spacings of the blend.
-        #[arg(long, default_value_t = otbake::brdf::eval::DEFAULT_ADAPTIVE.scale)]
+        #[arg(long, default_value_t = otbake::render::brdf::eval::DEFAULT_ADAPTIVE.scale)]
         scale: f32,
         /// Output MERL file (.binary).
         #[arg(short, long)]
@@ -261,7 +263,7 @@ enum Command {
         #[arg(long, default_value_t = 64)]
         res: usize,
         /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
+        #[arg(long, default_value_t = otbake::render::volume::DEFAULT_SIGMA)]
         sigma: f32,
         /// Output grid (.vol).
         #[arg(short, long)]
@@ -287,7 +289,7 @@ enum Command {
         #[arg(long, default_value_t = 256)]
         size: usize,
         /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
+        #[arg(long, default_value_t = otbake::render::volume::DEFAULT_SIGMA)]
         sigma: f32,
         /// Camera azimuth in degrees about the y axis (0: looking along -z, 90: along -x).
         #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
@@ -318,8 +320,8 @@ enum Command {
         )]
         weights: Vec<f32>,
         /// The axis the plane is perpendicular to.
-        #[arg(long, value_enum, default_value_t = otbake::volume::render::Axis::Z)]
-        axis: otbake::volume::render::Axis,
+        #[arg(long, value_enum, default_value_t = otbake::render::volume::Axis::Z)]
+        axis: otbake::render::volume::Axis,
         /// Position of the plane along the axis, in [0, 1].
         #[arg(long, default_value_t = 0.5)]
         at: f32,
@@ -327,7 +329,7 @@ enum Command {
         #[arg(long, default_value_t = 256)]
         size: usize,
         /// Kernel standard deviation in unit-cube units.
-        #[arg(long, default_value_t = otbake::volume::render::DEFAULT_SIGMA)]
+        #[arg(long, default_value_t = otbake::render::volume::DEFAULT_SIGMA)]
         sigma: f32,
         /// Grey = value × scale (default: the slice's largest value is white).
         #[arg(long)]
@@ -415,8 +417,8 @@ fn load_and_bake(
     show: Show,
 ) -> Result<Manifest> {
     let m = Manifest::load(path)?;
-    let progress = otbake::progress::Progress::new(show.lines);
-    let on_event = |e: &otbake::bake::Event<'_>| progress.event(e);
+    let progress = cli::progress::Progress::new(show.lines);
+    let on_event = |e: &otbake::pipeline::bake::Event<'_>| progress.event(e);
     let report = bake(
         &m,
         &BakeOptions {
@@ -502,7 +504,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Plan { manifest, format } => {
             let m = Manifest::load(&manifest)?;
             let exe = std::env::current_exe().context("cannot locate the otbake executable")?;
-            print!("{}", otbake::plan::render(&m, &exe, format)?);
+            print!("{}", otbake::pipeline::plan::render(&m, &exe, format)?);
         }
         Command::Pack {
             archive,
@@ -511,7 +513,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let bytes = std::fs::read(&archive)
                 .with_context(|| format!("cannot read {}", archive.display()))?;
-            otbake::inspect::validate(&bytes)
+            otbake::pipeline::inspect::validate(&bytes)
                 .with_context(|| format!("{} is not a valid archive", archive.display()))?;
             let packed = zstd::bulk::compress(&bytes, level).context("zstd compression failed")?;
             let out = output.unwrap_or_else(|| PathBuf::from(format!("{}.zst", archive.display())));
@@ -522,7 +524,7 @@ fn run(cli: Cli) -> Result<()> {
                 .with_context(|| format!("cannot read {}", packed.display()))?;
             let raw = zstd::stream::decode_all(&bytes[..])
                 .with_context(|| format!("{} is not zstd data", packed.display()))?;
-            otbake::inspect::validate(&raw)
+            otbake::pipeline::inspect::validate(&raw)
                 .with_context(|| format!("{} does not hold a valid archive", packed.display()))?;
             otbake::fsio::write_atomic(&output, &raw)?;
         }
@@ -578,7 +580,7 @@ fn run(cli: Cli) -> Result<()> {
             let m = load_and_bake(&manifest, false, None, Show::default())?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
-            if let otbake::texture::WeightField::Constant(w) = &weights {
+            if let otbake::render::texture::WeightField::Constant(w) = &weights {
                 if w.len() != maps.len() {
                     bail!(
                         "--weights has {} values but the manifest has {} inputs: give one weight per input",
@@ -591,7 +593,7 @@ fn run(cli: Cli) -> Result<()> {
                 Some(r) if !(r.is_finite() && r > 0.0) => {
                     bail!("--lod {r}: use a positive number of tiles")
                 }
-                Some(r) => otbake::texture::render_lod(
+                Some(r) => otbake::render::texture::render_lod(
                     archives.proxy()?,
                     &maps,
                     &weights,
@@ -599,7 +601,7 @@ fn run(cli: Cli) -> Result<()> {
                     size.1,
                     r,
                 )?,
-                None => otbake::texture::render_texture(
+                None => otbake::render::texture::render_texture(
                     archives.proxy()?,
                     &maps,
                     &weights,
@@ -627,7 +629,7 @@ fn run(cli: Cli) -> Result<()> {
                         .join(", ")
                 );
             }
-            let bytes = otbake::points::points_npy(&m, &input)?;
+            let bytes = otbake::render::points::points_npy(&m, &input)?;
             otbake::fsio::write_atomic(&output, &bytes)?;
         }
         Command::BrdfSlice {
@@ -649,7 +651,7 @@ fn run(cli: Cli) -> Result<()> {
             check_weight_count(&m, &manifest, &weights)?;
             let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
             let img =
-                otbake::brdf::render::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
+                otbake::render::brdf::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
             write_image(&output, &img)?;
         }
         Command::BrdfSpheres {
@@ -667,7 +669,7 @@ fn run(cli: Cli) -> Result<()> {
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
             let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
-            let img = otbake::brdf::render::spheres(&b, steps, size, &Default::default())
+            let img = otbake::render::brdf::spheres(&b, steps, size, &Default::default())
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             write_image(&output, &img)?;
         }
@@ -683,7 +685,7 @@ fn run(cli: Cli) -> Result<()> {
             let maps = archives.maps()?;
             check_weight_count(&m, &manifest, &weights)?;
             let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
-            otbake::brdf::render::export_merl(&b, &weights)?.write(&output)?;
+            otbake::render::brdf::export_merl(&b, &weights)?.write(&output)?;
         }
         Command::Volume {
             manifest,
@@ -696,7 +698,7 @@ fn run(cli: Cli) -> Result<()> {
             check_weight_count(&m, &manifest, &weights)?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
-            otbake::volume::render::export(archives.proxy()?, &maps, &weights, res, sigma)?
+            otbake::render::volume::export(archives.proxy()?, &maps, &weights, res, sigma)?
                 .write(&output)?;
         }
         Command::Render {
@@ -711,7 +713,7 @@ fn run(cli: Cli) -> Result<()> {
             step,
             output,
         } => {
-            let settings = otbake::volume::render::RenderSettings {
+            let settings = otbake::render::volume::RenderSettings {
                 size,
                 sigma,
                 azimuth,
@@ -725,10 +727,10 @@ fn run(cli: Cli) -> Result<()> {
                 (Some(w), _) => {
                     check_weight_count(&m, &manifest, &w)?;
                     let maps = archives.maps()?;
-                    otbake::volume::render::render(archives.proxy()?, &maps, &w, &settings)?
+                    otbake::render::volume::render(archives.proxy()?, &maps, &w, &settings)?
                 }
                 (None, Some(steps)) => {
-                    otbake::volume::render::render_triangle(&archives, steps, &settings)?
+                    otbake::render::volume::render_triangle(&archives, steps, &settings)?
                 }
                 (None, None) => bail!("give --weights a,b,.. or --triangle STEPS"),
             };
@@ -748,21 +750,21 @@ fn run(cli: Cli) -> Result<()> {
             check_weight_count(&m, &manifest, &weights)?;
             let archives = Archives::load(&m)?;
             let maps = archives.maps()?;
-            let settings = otbake::volume::render::SliceSettings {
+            let settings = otbake::render::volume::SliceSettings {
                 axis,
                 at,
                 size,
                 sigma,
                 scale,
             };
-            let img = otbake::volume::render::slice(archives.proxy()?, &maps, &weights, &settings)?;
+            let img = otbake::render::volume::slice(archives.proxy()?, &maps, &weights, &settings)?;
             write_image(&output, &img)?;
         }
         Command::Inspect { archive } => {
             let bytes = std::fs::read(&archive)
                 .with_context(|| format!("cannot read {}", archive.display()))?;
-            print!("{}", otbake::inspect::describe(&bytes));
-            otbake::inspect::validate(&bytes)
+            print!("{}", otbake::pipeline::inspect::describe(&bytes));
+            otbake::pipeline::inspect::validate(&bytes)
                 .with_context(|| format!("{} is not a valid archive", archive.display()))?;
         }
         Command::Bench {
@@ -805,8 +807,8 @@ fn brdf_blend<'a, 'm>(
     maps: &'m [otbake_runtime::Map<'a>],
     sigma: Option<f32>,
     scale: f32,
-) -> Result<otbake::brdf::eval::BrdfBlend<'a, 'm>> {
-    use otbake::brdf::eval::{BrdfBlend, BrdfBlendError, BrdfKernel, DEFAULT_ADAPTIVE};
+) -> Result<otbake::render::brdf::eval::BrdfBlend<'a, 'm>> {
+    use otbake::render::brdf::eval::{BrdfBlend, BrdfBlendError, BrdfKernel, DEFAULT_ADAPTIVE};
     let kernel = match sigma {
         Some(sigma) => BrdfKernel::Fixed(otbake_runtime::Kernel { sigma }),
         None => BrdfKernel::Adaptive(otbake_runtime::AdaptiveKernel {

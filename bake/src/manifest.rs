@@ -52,13 +52,13 @@
 //! fit = "stretch"               # stretch (fill the cube) | pad (pad cubic cells to a cube)
 //! ```
 
+use crate::input::mesh::voxelize::{Fit, MAX_MARGIN};
+use crate::input::vol::VolFit;
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use crate::proxy::ProxyShape;
 use crate::solve::{
     ExactSettings, MapKind, SinkhornSettings, SlicedMap, SlicedSettings, SolverSettings,
 };
-use crate::volume::vol::VolFit;
-use crate::volume::voxelize::{Fit, MAX_MARGIN};
 use otbake_formats::storage::{Precision, Storage};
 use otbake_formats::Wrap;
 use serde::Deserialize;
@@ -256,7 +256,7 @@ impl Manifest {
                 if !(2..=1024).contains(&v) {
                     return Err(at(
                         Some(r.span()),
-                        format!("`mesh.resolution` = {v} is out of range: use 2 to 1024 cells per axis (default {}; tests 16-32)", crate::volume::voxelize::DEFAULT_RESOLUTION),
+                        format!("`mesh.resolution` = {v} is out of range: use 2 to 1024 cells per axis (default {}; tests 16-32)", crate::input::mesh::voxelize::DEFAULT_RESOLUTION),
                     ));
                 }
                 options.mesh.resolution = v as usize;
@@ -266,7 +266,7 @@ impl Manifest {
                 if !(v.is_finite() && (0.0..=MAX_MARGIN).contains(&v)) {
                     return Err(at(
                         Some(margin.span()),
-                        format!("`mesh.margin` = {v} is out of range: use 0 to {MAX_MARGIN} (a fraction of the cube left empty on every side; default {})", crate::volume::voxelize::DEFAULT_MARGIN),
+                        format!("`mesh.margin` = {v} is out of range: use 0 to {MAX_MARGIN} (a fraction of the cube left empty on every side; default {})", crate::input::mesh::voxelize::DEFAULT_MARGIN),
                     ));
                 }
                 options.mesh.margin = v;

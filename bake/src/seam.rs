@@ -9,7 +9,7 @@
 //! Differences are taken on display values (sRGB-encoded, clamped to [0, 1]) averaged over R, G, B:
 //! what a viewer sees, and what the README's figures were measured on (8-bit files).
 
-use crate::imageio::{linear_to_srgb, Rgba};
+use crate::render::imageio::{linear_to_srgb, Rgba};
 
 /// The seam across each join of a tile.
 #[derive(Debug, Clone, Copy, PartialEq)]

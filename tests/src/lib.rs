@@ -3,7 +3,7 @@
 
 pub mod fuzz;
 
-use otbake::imageio::{write_image, Rgba};
+use otbake::render::imageio::{write_image, Rgba};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -1,7 +1,7 @@
 //! Bad input gets a clear error naming the file, field or offset, a non-zero exit, and nothing
 //! half-written.
 
-use otbake::imageio::{write_image, Rgba};
+use otbake::render::imageio::{write_image, Rgba};
 use otbake_tests::{otbake_err, otbake_ok, scratch, shared_data, temp_files, write_manifest};
 use std::path::Path;
 

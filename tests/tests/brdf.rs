@@ -4,11 +4,11 @@
 // RGB loops index several arrays at once.
 #![allow(clippy::needless_range_loop)]
 
-use otbake::bake::{bake, BakeOptions};
-use otbake::brdf::eval::{BrdfBlend, BrdfKernel};
-use otbake::brdf::merl::{self, Merl};
-use otbake::brdf::{grid_value, luminance, to_grid, Analytic};
+use otbake::input::brdf::merl::{self, Merl};
+use otbake::input::brdf::{grid_value, luminance, to_grid, Analytic};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
+use otbake::render::brdf::eval::{BrdfBlend, BrdfKernel};
 use otbake::render::Archives;
 use otbake_tests::{otbake_err, otbake_ok, scratch, write_manifest};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -144,7 +144,7 @@ fn blend_reproduces_inputs_samples_consistently_and_exports() {
 
     // 3. Export: the MERL file of a blend loads back and holds the blend's values.
     let out = dir.join("half.binary");
-    otbake::brdf::render::export_merl(&b, &[0.5, 0.5])
+    otbake::render::brdf::export_merl(&b, &[0.5, 0.5])
         .unwrap()
         .write(&out)
         .unwrap();
@@ -277,8 +277,8 @@ fn adaptive_kernel_samples_its_own_pdf() {
             let p = b.pdf(&w, s.wi, s.wo).unwrap();
             assert!((p / s.pdf - 1.0).abs() < 1e-3, "{p} vs {}", s.pdf);
             sum += f64::from(s.luminance) * s.wo[2] / s.pdf;
-            let (ti, to, pd) = otbake::brdf::angles(s.wi, s.wo).unwrap();
-            let u = otbake::brdf::to_unit(ti, to, pd);
+            let (ti, to, pd) = otbake::input::brdf::angles(s.wi, s.wo).unwrap();
+            let u = otbake::input::brdf::to_unit(ti, to, pd);
             if inside {
                 let r2: f64 = (0..3).map(|a| f64::from(u[a] - y[a]).powi(2)).sum();
                 assert!(
@@ -374,7 +374,7 @@ fn merl_resampling_keeps_reciprocity_and_energy() {
             "({a},{bb},{c}): {x} vs {y}"
         );
     }
-    let (got, want) = (otbake::brdf::grid_integral(&g), BLUE.integral(64));
+    let (got, want) = (otbake::input::brdf::grid_integral(&g), BLUE.integral(64));
     assert!((got / want - 1.0).abs() < 0.02, "energy {got} vs {want}");
 }
 
@@ -612,7 +612,7 @@ fn sliced_assignment_reproduces_the_inputs_samples_at_unit_weights() {
             let order = otbake::tree::tree_order(&samples, dim, m.proxy.leaf_size);
             let positions = otbake::tree::permute(&samples, dim, &order);
             let spacings = otbake::spacing::spacings(&positions, dim, Wrap::Clamp);
-            let (proxy, identity) = otbake::archive::identity_archives(
+            let (proxy, identity) = otbake::pipeline::archive::identity_archives(
                 &grid,
                 dim,
                 m.proxy.leaf_size,

@@ -1,8 +1,8 @@
 //! Blends of Gaussian images match the closed-form Wasserstein barycenter: for axis-aligned
 //! Gaussians N(m_i, diag σ_i²), the barycenter with weights w is N(Σ w_i m_i, diag (Σ w_i σ_i)²).
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::Archives;
 use otbake_runtime::Blend;
 use otbake_tests::{scratch, write_gaussian_exr, write_manifest};

@@ -2,8 +2,8 @@
 //! exactly what it affects, kills and concurrent bakes never leave bad outputs, and build-system
 //! actions give the same bytes as `otbake bake`.
 
-use otbake::bake::{bake, BakeOptions, BakeReport, Status};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions, BakeReport, Status};
 use otbake_tests::{
     otbake, otbake_bin, otbake_err, otbake_ok, scratch, shared_data, temp_files, write_manifest,
 };
@@ -237,7 +237,7 @@ fn killed_bakes_leave_good_outputs_and_the_next_bake_repairs_them() {
         // Whatever exists is a complete, valid archive.
         for (name, bytes) in outputs(&dir) {
             assert!(
-                otbake::inspect::validate(&bytes).is_ok(),
+                otbake::pipeline::inspect::validate(&bytes).is_ok(),
                 "round {round}: {name} is torn"
             );
         }
@@ -401,7 +401,10 @@ fn full_or_read_only_output_disks_fail_clearly_and_keep_previous_outputs() {
     assert!(err.contains("No space left on device"), "{err}");
     // Whatever was completed is valid; nothing is torn; no temporaries remain.
     for (name, bytes) in outputs(&dir) {
-        assert!(otbake::inspect::validate(&bytes).is_ok(), "{name} is torn");
+        assert!(
+            otbake::pipeline::inspect::validate(&bytes).is_ok(),
+            "{name} is torn"
+        );
     }
     assert!(
         temp_files(&out).is_empty(),

@@ -4,11 +4,11 @@
 //! writes tileable images, bad manifests are refused clearly, the wrap is part of the cache key, and
 //! bakes are byte-identical for any thread count.
 
-use otbake::bake::{bake, BakeOptions, Status};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions, Status};
+use otbake::render::texture::{render_texture, WeightField};
 use otbake::render::Archives;
 use otbake::seam::{seam, seam_of_file};
-use otbake::texture::{render_texture, WeightField};
 use otbake_runtime::{Blend, Kernel, Wrap};
 use otbake_tests::{otbake_err, otbake_ok, scratch, shared_data, write_manifest};
 use std::path::PathBuf;

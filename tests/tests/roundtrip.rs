@@ -2,8 +2,8 @@
 //! points, splat agrees with point queries, maps of another proxy are refused, damaged bytes are
 //! errors, and bakes are byte-identical for any thread count.
 
-use otbake::bake::{bake, BakeOptions, Status};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions, Status};
 use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake_formats::write::aligned_copy;
 use otbake_runtime::{Blend, Error, Kernel, Map, Proxy};
@@ -237,7 +237,7 @@ fn shipped_small_manifest_bakes_and_renders_a_grid() {
 
 #[test]
 fn per_pixel_weights_equal_single_weight_queries() {
-    use otbake::texture::{render_texture, WeightField};
+    use otbake::render::texture::{render_texture, WeightField};
     let m = shapes_manifest("rt-texture", 3000, 0);
     bake(&m, &BakeOptions::default()).unwrap();
     let a = Archives::load(&m).unwrap();
@@ -291,7 +291,7 @@ fn per_pixel_weights_equal_single_weight_queries() {
 
 #[test]
 fn level_of_detail_pixels_conserve_the_blend_mass() {
-    use otbake::texture::{render_lod, WeightField};
+    use otbake::render::texture::{render_lod, WeightField};
     // Gray luminance inputs (additive display, color ratio 1): a pixel's red value is the average
     // mass over its footprint, with no clamping.
     let dir = scratch("rt-lod");

@@ -5,8 +5,8 @@
 
 #![allow(clippy::needless_range_loop)] // coordinate loops read clearer with indices
 
-use otbake::bake::{bake, BakeOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake_runtime::{Blend, Kernel, Precision, Storage};
 use otbake_tests::{otbake_err, otbake_ok, scratch, shared_data, write_manifest};

@@ -2,15 +2,15 @@
 //! against its closed form, runtime 3D queries against brute force, the volume commands, and bad
 //! meshes and grids.
 
-use otbake::bake::{bake, BakeOptions};
+use otbake::input::mesh::shapes::{cuboid, icosphere};
+use otbake::input::mesh::voxelize::{self, Fit, MeshOptions, Placement};
+use otbake::input::mesh::Mesh;
+use otbake::input::vol::VolFile;
 use otbake::input::{load_with, DensityChannel, LoadOptions};
 use otbake::manifest::Manifest;
+use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::Archives;
 use otbake::sample::importance_sample;
-use otbake::volume::mesh::shapes::{cuboid, icosphere};
-use otbake::volume::mesh::Mesh;
-use otbake::volume::vol::VolFile;
-use otbake::volume::voxelize::{self, Fit, MeshOptions, Placement};
 use otbake_runtime::{Blend, Kernel};
 use otbake_tests::{otbake_bin, otbake_err, otbake_ok, scratch, shared_data, write_manifest};
 use std::path::{Path, PathBuf};
@@ -691,7 +691,7 @@ fn bad_vol_files_name_the_byte_offset() {
 /// Under `fit = "each"` it rebakes only its own map.
 #[test]
 fn common_fit_keys_and_plans_depend_on_every_mesh() {
-    use otbake::bake::Status;
+    use otbake::pipeline::bake::Status;
     let dir = scratch("vol-common");
     for (fit, rebaked) in [("each", vec!["b"]), ("common", vec!["a", "b"])] {
         write_obj(&dir, "a.obj", &cuboid([0.0; 3], [1.0; 3]));
@@ -712,7 +712,7 @@ fn common_fit_keys_and_plans_depend_on_every_mesh() {
             .map(|p| p.name.as_str())
             .collect();
         assert_eq!(built, rebaked, "fit = {fit}");
-        let actions = otbake::plan::actions(&m, Path::new("otbake"));
+        let actions = otbake::pipeline::plan::actions(&m, Path::new("otbake"));
         let a = actions.iter().find(|x| x.id == "a").unwrap();
         let reads_b = a.inputs.iter().any(|p| p.ends_with("b.obj"));
         assert_eq!(reads_b, fit == "common", "fit = {fit}: {:?}", a.inputs);

@@ -13,13 +13,13 @@
 //!
 //! Volumes (`.vol`) and meshes (`.obj`): axis 0 = x, axis 1 = y, axis 2 = z. A `.vol` grid's cells
 //! are the grid's cells (it fills the cube); a mesh is placed by `[mesh] fit` and voxelized at
-//! `[mesh] resolution` with mass 1 inside, 0 outside. Details in [`crate::volume`].
+//! `[mesh] resolution` with mass 1 inside, 0 outside. Details in [`crate::input`].
 //!
 //! BRDFs (isotropic, measured): axis 0 = θi, axis 1 = θo, axis 2 = φd = φo − φi, with
 //! `(θi, θo, φd) ∈ [0, π/2] × [0, π/2] × [0, π]` mapped linearly to `[0,1]³` (φd is folded into
 //! `[0, π]` by isotropy and reciprocity). The grid is `res³` cells (`[brdf] resolution`, default
 //! 180); cell mass = luminance, no Jacobian. The measure, the value formula and the sampling pdf are
-//! in [`crate::brdf`].
+//! in [`crate::input::brdf`].
 //!
 //! # Density and color
 //!
@@ -35,8 +35,11 @@
 //! Masses are not normalized here: the sampler normalizes, and [`Grid::mean_mass`] keeps the scale
 //! that the run-time needs to put the luminance back (paper §6.4).
 
+pub mod brdf;
 mod grid;
 mod image;
+pub mod mesh;
+pub mod vol;
 
 pub use self::image::{load_image, srgb_to_linear};
 pub use grid::Grid;
@@ -114,15 +117,15 @@ pub struct LoadOptions {
     /// Cells per axis of BRDF grids.
     pub brdf_resolution: usize,
     /// Resolution and placement of mesh grids.
-    pub mesh: crate::volume::voxelize::MeshOptions,
+    pub mesh: crate::input::mesh::voxelize::MeshOptions,
     /// Placement of `.vol` grids.
-    pub volume_fit: crate::volume::vol::VolFit,
+    pub volume_fit: crate::input::vol::VolFit,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
-            brdf_resolution: crate::brdf::DEFAULT_RESOLUTION,
+            brdf_resolution: crate::input::brdf::DEFAULT_RESOLUTION,
             mesh: Default::default(),
             volume_fit: Default::default(),
         }
@@ -157,15 +160,15 @@ pub fn load_with(
     match kind {
         Some(InputKind::Image) => load_image(path, channel),
         Some(InputKind::Merl) => {
-            let merl = crate::brdf::merl::Merl::read(path)?;
-            crate::brdf::to_grid(path, res, |a, b, c| merl.eval(a, b, c))
+            let merl = crate::input::brdf::merl::Merl::read(path)?;
+            crate::input::brdf::to_grid(path, res, |a, b, c| merl.eval(a, b, c))
         }
         Some(InputKind::Cornell) => {
-            let lattice = crate::brdf::cornell::Cornell::read(path)?.lattice();
-            crate::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
+            let lattice = crate::input::brdf::cornell::Cornell::read(path)?.lattice();
+            crate::input::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
         }
-        Some(InputKind::Volume) => crate::volume::vol::load(path, options.volume_fit),
-        Some(InputKind::Mesh) => crate::volume::voxelize::load(path, &options.mesh),
+        Some(InputKind::Volume) => crate::input::vol::load(path, options.volume_fit),
+        Some(InputKind::Mesh) => crate::input::mesh::voxelize::load(path, &options.mesh),
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),
             ext: path
@@ -256,16 +259,16 @@ pub enum InputError {
     InvalidDensity { path: PathBuf, message: String },
 
     #[error(transparent)]
-    Brdf(#[from] crate::brdf::BrdfError),
+    Brdf(#[from] crate::input::brdf::BrdfError),
 
     #[error("BRDF {}: {message}", path.display())]
     BrdfValue { path: PathBuf, message: String },
 
     #[error(transparent)]
-    Volume(#[from] crate::volume::vol::VolError),
+    Volume(#[from] crate::input::vol::VolError),
 
     #[error(transparent)]
-    Mesh(#[from] crate::volume::mesh::MeshError),
+    Mesh(#[from] crate::input::mesh::MeshError),
 
     #[error("density `{channel}` does not apply to {}: a volume's density is its values, a mesh's is uniform inside (remove `density`)", path.display())]
     Density3d {

@@ -3,7 +3,7 @@
 //! Every pixel is one runtime point query with that pixel's own weights — exactly what a renderer's
 //! texture lookup does — so a weight field costs nothing to bake: it is only evaluated at run time.
 
-use crate::imageio::Rgba;
+use crate::render::imageio::Rgba;
 use crate::render::{composite, shade, RenderError};
 use otbake_runtime::{Blend, Kernel, Map, Proxy};
 use rayon::prelude::*;

@@ -7,10 +7,10 @@
 //! Ninja rules use `restat = 1`: `bake-one` leaves a current output untouched, so editing one input's
 //! line in the manifest rebakes that map only, even though every action depends on the manifest file.
 
-use crate::error::BakeError;
+use crate::input::mesh::voxelize::Fit;
 use crate::input::InputKind;
 use crate::manifest::{Manifest, ProxySource};
-use crate::volume::voxelize::Fit;
+use crate::pipeline::error::BakeError;
 use std::path::{Path, PathBuf};
 
 /// Output format of a plan.

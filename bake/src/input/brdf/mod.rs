@@ -1,6 +1,6 @@
 //! Isotropic measured BRDFs as 3D densities over `(θi, θo, φd)` (paper §6.4): readers and writers
 //! ([`merl`], [`cornell`]), resampling to a grid ([`to_grid`]), run-time evaluation and importance
-//! sampling of a blend ([`eval`]), and images ([`render`]).
+//! sampling of a blend ([`crate::render::brdf::eval`]), and images ([`crate::render::brdf`]).
 //!
 //! # Domain
 //!
@@ -25,14 +25,14 @@
 //! ```
 //!
 //! with `u = u(ωi, ωo)` as above; at weights `(1, 0, …)` this is the input grid's value smoothed
-//! by the query kernel (see [`eval`] for the two kernels: density-adaptive by default, or fixed). Why no Jacobian: evaluation — the operation a renderer calls most — then
+//! by the query kernel (see [`crate::render::brdf::eval`] for the two kernels: density-adaptive by default, or fixed). Why no Jacobian: evaluation — the operation a renderer calls most — then
 //! never divides by `sin θ` or `cos θ`, which vanish at the pole and the horizon and would amplify
 //! the kernel estimate's noise there; the paper stores plain luminance too.
 //!
 //! # Importance sampling
 //!
 //! The blend's points (`Blend::sample`) follow `ρ_w`, i.e. `f_Y` in the angle measure; with the
-//! adaptive kernel (the default, [`eval`]) a sample is point `i` plus noise of its kernel width,
+//! adaptive kernel (the default, [`crate::render::brdf::eval`]) a sample is point `i` plus noise of its kernel width,
 //! folded into the cube, which follows the kernel estimate `ρ_w` *exactly*. A sample is
 //! turned into a pair of directions by drawing `φi` uniformly in `[0, 2π)` and the sign of `φd`
 //! with probability 1/2 each. The joint density of `(ωi, ωo)` in the product of solid angles
@@ -43,7 +43,7 @@
 //!             = ρ_w(u) / (π⁴ sin θi sin θo)
 //! ```
 //!
-//! so that `E[f(ωi, ωo) cos θo / pdf] = ∫∫ f cos θo dωi dωo` ([`eval::BrdfBlend::sample`] returns
+//! so that `E[f(ωi, ωo) cos θo / pdf] = ∫∫ f cos θo dωi dωo` ([`crate::render::brdf::eval::BrdfBlend::sample`] returns
 //! the value and this pdf; the tests check the estimate against direct integration).
 
 // RGB and 3-vector loops index several arrays at once; indices read better than zips here.
@@ -51,9 +51,7 @@
 
 pub mod cie;
 pub mod cornell;
-pub mod eval;
 pub mod merl;
-pub mod render;
 
 use crate::input::{Grid, InputError};
 use rayon::prelude::*;

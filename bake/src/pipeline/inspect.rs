@@ -1,6 +1,6 @@
 //! `otbake inspect`: what an archive holds, and whether it is valid.
 
-use crate::key::hex;
+use crate::pipeline::key::hex;
 use otbake_formats::header::{Header, HEADER_LEN};
 use otbake_formats::write::aligned_copy;
 use otbake_formats::{ArchiveKind, FormatError};

@@ -10,18 +10,18 @@
 //! manifest. So renaming or adding an input never rebakes another one, and any bake of a key, by
 //! `bake`, by `bake_one` in a build system, on any machine, gives the same bytes.
 
-use crate::archive::{MapData, ProxyData};
-use crate::error::BakeError;
-use crate::filestat::StatIndex;
 use crate::fsio;
+use crate::input::mesh::voxelize::Fit;
 use crate::input::{self, DensityChannel, Grid};
-use crate::key::KeyBuilder;
 use crate::manifest::{InputSpec, Manifest, ProxySource};
+use crate::pipeline::archive::{MapData, ProxyData};
+use crate::pipeline::error::BakeError;
+use crate::pipeline::key::KeyBuilder;
+use crate::pipeline::stat::StatIndex;
+use crate::pipeline::store::{self, Store};
 use crate::proxy;
 use crate::sample;
 use crate::solve::{self, Problem};
-use crate::store::{self, Store};
-use crate::volume::voxelize::Fit;
 use otbake_formats::torus::fold;
 use otbake_formats::{ArchiveKind, Composite, Wrap};
 use rayon::prelude::*;
@@ -405,7 +405,7 @@ pub fn bake(m: &Manifest, opts: &BakeOptions<'_>) -> Result<BakeReport, BakeErro
     report.products.push(proxy_product);
     if !stale.is_empty() && proxy_data.is_none() {
         proxy_data = Some(
-            crate::archive::load_proxy_positions(&proxy_path, &pkey)
+            crate::pipeline::archive::load_proxy_positions(&proxy_path, &pkey)
                 .map_or_else(|| build_proxy(m, dim, pkey), Ok)?,
         );
     }
@@ -492,11 +492,9 @@ pub fn bake_one(m: &Manifest, action: &Action<'_>, output: &Path) -> Result<bool
         Action::Proxy => encoded(output, build_proxy(m, dim, pkey)?.encode())?,
         Action::Map { name, proxy } => {
             let i = m.input_index(name).expect("checked above");
-            let proxy_data =
-                crate::archive::load_proxy_positions(proxy, &pkey).ok_or_else(|| {
-                    BakeError::StaleProxy {
-                        path: proxy.to_path_buf(),
-                    }
+            let proxy_data = crate::pipeline::archive::load_proxy_positions(proxy, &pkey)
+                .ok_or_else(|| BakeError::StaleProxy {
+                    path: proxy.to_path_buf(),
                 })?;
             let grid = load_input(&m.inputs[i])?;
             encoded(output, build_map(m, i, &grid, &proxy_data, key)?.encode())?

@@ -238,7 +238,7 @@ impl Merl {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::Analytic;
+    use crate::input::brdf::Analytic;
 
     fn plastic() -> Analytic {
         Analytic {

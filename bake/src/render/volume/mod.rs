@@ -33,9 +33,10 @@
 // 3-vector loops index several arrays at once; indices read better than zips here.
 #![allow(clippy::needless_range_loop)]
 
-use super::vol::VolFile;
-use crate::imageio::Rgba;
-use crate::render::{grid_cells, prepare_into, Archives, RenderError};
+use crate::input::vol::VolFile;
+use crate::render::image::prepare_into;
+use crate::render::imageio::Rgba;
+use crate::render::{grid_cells, Archives, RenderError};
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, Proxy, Region};
 use rayon::prelude::*;
 
@@ -598,7 +599,7 @@ pub fn render_triangle(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::volume::mesh::shapes::{cuboid, icosphere};
+    use crate::input::mesh::shapes::{cuboid, icosphere};
 
     /// Bakes a cube and a ball (16³, 600 points, exact solver) in a scratch directory.
     fn small_bake(name: &str) -> Archives {
@@ -611,7 +612,7 @@ mod tests {
         let body = "[output]\ndir = \"out\"\n[proxy]\nkind = \"gaussian\"\nsamples = 600\n[solver]\nkind = \"exact\"\n[mesh]\nresolution = 16\nmargin = 0.2\n[[input]]\nname = \"cube\"\npath = \"cube.obj\"\n[[input]]\nname = \"ball\"\npath = \"ball.obj\"\n";
         std::fs::write(dir.join("m.toml"), body).unwrap();
         let m = crate::manifest::Manifest::load(&dir.join("m.toml")).unwrap();
-        crate::bake::bake(&m, &Default::default()).unwrap();
+        crate::pipeline::bake::bake(&m, &Default::default()).unwrap();
         Archives::load(&m).unwrap()
     }
 

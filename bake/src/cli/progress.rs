@@ -1,8 +1,8 @@
 //! Terminal progress for bakes: a spinner per product being baked, a line per finished product.
 //! Spinners appear only on a terminal; lines go to stderr either way (unless quiet).
 
-use crate::bake::{Event, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use otbake::pipeline::bake::{Event, Status};
 use std::cell::RefCell;
 use std::io::IsTerminal;
 use std::time::Duration;

@@ -1,10 +1,12 @@
 //! Images and exports of BRDF blends: a `θi = 45°` slice on the unit disk and a grid of spheres
 //! (paper Fig. 14), and MERL files. Every value is a runtime point query.
 
-use super::eval::{BrdfBlend, BrdfBlendError};
-use super::merl::Merl;
-use super::{direction, luminance};
-use crate::imageio::Rgba;
+pub mod eval;
+
+use crate::input::brdf::merl::Merl;
+use crate::input::brdf::{direction, luminance};
+use crate::render::imageio::Rgba;
+use eval::{BrdfBlend, BrdfBlendError};
 use rayon::prelude::*;
 
 /// Renders `f(ωi, ωo)` for `θi = theta_i` (light from the right, `φi = 0`) over the outgoing

@@ -260,7 +260,7 @@ impl Lattice {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::{grid_integral, to_grid, Analytic};
+    use crate::input::brdf::{grid_integral, to_grid, Analytic};
 
     /// `shared/data/brdfs/NAME` beside the repository (or beside a worktree's parent).
     fn shared(name: &str) -> std::path::PathBuf {
@@ -289,7 +289,7 @@ mod tests {
                 rnd() * FRAC_PI_2,
                 (rnd() * 2.0 - 1.0) * PI,
             );
-            let y = crate::brdf::luminance(f.eval(ti, to, fold_phi(po)));
+            let y = crate::input::brdf::luminance(f.eval(ti, to, fold_phi(po)));
             text += &format!("{ti} 0 {to} {po}");
             for _ in 0..31 {
                 text += &format!(" {y}");

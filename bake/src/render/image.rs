@@ -9,8 +9,8 @@
 //! too.
 
 use crate::fsio::{read_archive, ArchiveBytes, IoError};
-use crate::imageio::Rgba;
 use crate::manifest::Manifest;
+use crate::render::imageio::Rgba;
 use otbake_formats::Composite;
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, Proxy, Region, MAX_DIM};
 use rayon::prelude::*;

@@ -160,7 +160,7 @@ impl StatIndex {
             };
             text += &format!(
                 "{} {} {} {} {} {p}\n",
-                crate::key::hex(&e.value),
+                crate::pipeline::key::hex(&e.value),
                 e.stamp.size,
                 e.stamp.mtime_ns,
                 e.stamp.inode,

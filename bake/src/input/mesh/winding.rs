@@ -23,7 +23,7 @@
 //! a relative `O((r/d)³)` per far cluster, only moves values away from the surface. Tests compare
 //! values and classification against brute force on the shared meshes.
 
-use super::mesh::Mesh;
+use super::Mesh;
 
 /// A cluster is approximated when the query is farther than `BETA` × its radius from its center.
 pub const BETA: f64 = 2.0;
@@ -221,7 +221,7 @@ fn build(nodes: &mut Vec<Node>, at: usize, tris: &mut [[[f64; 3]; 3]], offset: u
 
 #[cfg(test)]
 mod tests {
-    use super::super::mesh::shapes::{cuboid, icosphere};
+    use crate::input::mesh::shapes::{cuboid, icosphere};
     use super::*;
     use std::path::Path;
 

@@ -1,5 +1,5 @@
 //! Run-time evaluation and importance sampling of a blend of BRDF maps (formulas in the module
-//! docs of [`crate::brdf`]). Everything goes through `otbake-runtime` point queries and samples,
+//! docs of [`crate::input::brdf`]). Everything goes through `otbake-runtime` point queries and samples,
 //! as a renderer's BSDF would.
 //!
 //! # Kernels
@@ -28,7 +28,7 @@
 //! that would need a second reflection (`u_a < −1` or `u_a > 2`, impossible unless a map holds
 //! points a whole cube outside) is returned as a failed sample (pdf 0, value 0).
 
-use super::{angles, direction, from_unit, to_unit};
+use crate::input::brdf::{angles, direction, from_unit, to_unit};
 use otbake_runtime::{AdaptiveKernel, Blend, Error, Kernel, Map, PointValue, Proxy};
 use std::f64::consts::PI;
 

@@ -31,8 +31,8 @@
 //! Importance sampling then draws points uniformly inside the inside cells, so samples stray at most
 //! one cell (`√3 / res` in distance) outside the true surface: the voxelization is the input.
 
-use super::mesh::{Mesh, MeshError};
 use super::winding::Winding;
+use super::{Mesh, MeshError};
 use crate::input::{Grid, InputError};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -168,7 +168,7 @@ pub fn load(path: &Path, options: &MeshOptions) -> Result<Grid, InputError> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::mesh::shapes::{cuboid, icosphere};
+    use crate::input::mesh::shapes::{cuboid, icosphere};
     use super::*;
 
     #[test]

@@ -43,5 +43,5 @@ pub fn points_npy(m: &Manifest, name: &str) -> Result<Vec<u8>, RenderError> {
         );
         data.extend_from_slice(&mapped[i * d..(i + 1) * d]);
     }
-    Ok(crate::npy::encode_f32(n, 2 * d, &data))
+    Ok(crate::render::npy::encode_f32(n, 2 * d, &data))
 }

@@ -7,7 +7,7 @@
 //! store: two writers of one key write the same bytes.
 
 use crate::fsio::{read_aligned, write_atomic, IoError};
-use crate::key::hex;
+use crate::pipeline::key::hex;
 use otbake_formats::ArchiveKind;
 use rkyv::util::AlignedVec;
 use std::path::{Path, PathBuf};

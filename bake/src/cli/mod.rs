@@ -1,0 +1,3 @@
+//! The `otbake` command line: one module per command family.
+
+pub mod progress;

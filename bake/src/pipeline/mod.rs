@@ -1,0 +1,27 @@
+//! The bake as a pipeline of content-keyed products: a manifest in, one proxy archive and one map
+//! archive per input out, doing only what changed.
+//!
+//! * [`bake`](mod@bake): the incremental bake of a whole manifest ([`bake::bake`]) and the hermetic
+//!   single-product bake build systems call ([`bake::bake_one`]);
+//! * [`key`]: the blake3 key of a product; [`store`]: the content-addressed store of archives by key;
+//!   [`stat`]: the index of file stamps that lets a no-op bake skip hashing;
+//! * [`archive`]: proxy and map data turned into archive bytes, and keys read back from disk;
+//! * [`plan`]: the bake as a graph of `bake-one` actions (Ninja, JSON);
+//! * [`inspect`]: human-readable descriptions and validation of archive bytes;
+//! * [`error`]: [`BakeError`], what a product's failure reports.
+//!
+//! Architecture Invariant: a product's bytes depend only on what its key covers — never on the
+//! clock, paths, names, thread count or the manifest's other inputs. Nothing in this folder renders
+//! or parses command lines.
+
+pub mod archive;
+pub mod bake;
+pub mod error;
+pub mod inspect;
+pub mod key;
+pub mod plan;
+pub mod stat;
+pub mod store;
+
+pub use bake::{bake, bake_one, Action, BakeOptions, BakeReport, Event, Product, Status};
+pub use error::BakeError;
