@@ -168,8 +168,8 @@ pub fn load(path: &Path, options: &MeshOptions) -> Result<Grid, InputError> {
 
 #[cfg(test)]
 mod tests {
-    use crate::input::mesh::shapes::{cuboid, icosphere};
     use super::*;
+    use crate::input::mesh::shapes::{cuboid, icosphere};
 
     #[test]
     fn fit_centers_and_scales_the_longest_side() {

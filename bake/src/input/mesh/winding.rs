@@ -221,8 +221,8 @@ fn build(nodes: &mut Vec<Node>, at: usize, tris: &mut [[[f64; 3]; 3]], offset: u
 
 #[cfg(test)]
 mod tests {
-    use crate::input::mesh::shapes::{cuboid, icosphere};
     use super::*;
+    use crate::input::mesh::shapes::{cuboid, icosphere};
     use std::path::Path;
 
     /// Deterministic points in the box `[lo, hi]` (a 3D additive recurrence).

@@ -1,0 +1,211 @@
+//! Manifests: the declarative TOML that names a bake's inputs, proxy and solver.
+//!
+//! Parsing is two-step: serde reads the raw TOML (unknown keys rejected, so a typo never silently
+//! falls back to a default), then [`Manifest::load`] validates cross-field rules and resolves paths
+//! relative to the manifest file. Every error carries `file:line:column` and a fix.
+//!
+//! ```toml
+//! [output]
+//! dir = "out/shapes"            # relative to this file
+//!
+//! [proxy]
+//! kind = "gaussian"             # gaussian | uniform | spiral | input
+//! sigma = 0.1667                # gaussian: std. dev. as a fraction of the side
+//! samples = 250000              # points per input (and in the proxy)
+//! seed = 0
+//!
+//! [solver]
+//! kind = "sinkhorn"             # sinkhorn | exact | sliced
+//! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
+//! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
+//! # blur_spacing = 1.5 (1.0 in 3D), scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0,
+//! # auction_eps = 0.25
+//! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0,
+//! # map = "flow" | "assignment" (the flow's endpoints snapped one to one onto the samples)
+//!
+//! [[input]]
+//! name = "duck"
+//! path = "data/duck.png"        # relative to this file
+//! density = "inverted"          # luminance (default) | inverted | alpha
+//! wrap = "periodic"             # clamp (default) | periodic: a tileable image on the torus; every
+//!                               # input must agree, and the proxy must be uniform or an input
+//!
+//! [brdf]                        # optional; for .binary (MERL) and .brdf (Cornell) inputs
+//! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
+//!
+//! [storage]                     # optional: what every map archive stores, how precisely
+//! preset = "compact"            # full (default: all f32, spacings) | compact (u8/u16/u8, node
+//!                               # colors kept, no spacings)
+//! positions = "u8"              # f32 | u16 | u8 (on the box of each leaf's parent)
+//! node_boxes = "u16"            # f32 | u16 (on the map's bounds, rounded outward)
+//! colors = "u8"                 # f32 | u16 | u8 | none (density-only scenes)
+//! node_colors = true            # node color sums, for range queries of color (LOD)
+//! spacings = true               # per-point spacings, for density-adaptive queries (BRDF blends
+//!                               # evaluate with them by default); 1.1 bytes per point
+//!
+//! [mesh]                        # optional; for .obj inputs (see volume::voxelize)
+//! resolution = 128              # grid cells per axis (default 128)
+//! fit = "each"                  # each (own bounding box) | common (one box for all meshes)
+//! margin = 0.05                 # empty border on every side of the cube (default 0.05)
+//!
+//! [volume]                      # optional; for .vol inputs (see volume::vol)
+//! fit = "stretch"               # stretch (fill the cube) | pad (pad cubic cells to a cube)
+//! ```
+
+mod error;
+mod inputs;
+mod options;
+mod proxy;
+mod raw;
+mod solver;
+mod storage;
+#[cfg(test)]
+mod tests;
+
+pub use error::ManifestError;
+
+use crate::input::{DensityChannel, InputKind, LoadOptions};
+use crate::proxy::ProxyShape;
+use crate::solve::SolverSettings;
+use error::Locator;
+use otbake_formats::storage::Storage;
+use otbake_formats::Wrap;
+use raw::RawManifest;
+use std::path::{Path, PathBuf};
+
+/// Most samples a manifest may ask for per input. Far above the paper's 1M; beyond it a bake needs
+/// more memory than a build machine should give one asset (and the archive format caps at 2^28).
+pub const MAX_SAMPLES: u64 = 1 << 24;
+
+/// Default leaf size of the query tree: small leaves prune well; the paper goes down to one point,
+/// which doubles the node arrays for little gain.
+pub const DEFAULT_LEAF_SIZE: u32 = 8;
+
+/// A validated manifest with resolved paths.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Manifest {
+    /// The manifest file.
+    pub path: PathBuf,
+    /// Where archives go.
+    pub output_dir: PathBuf,
+    /// The shared proxy.
+    pub proxy: ProxySpec,
+    /// How every map is solved.
+    pub solver: SolverSettings,
+    /// Inputs in manifest order.
+    pub inputs: Vec<InputSpec>,
+    /// What map archives store and how precisely (`[storage]`; default [`Storage::FULL`]).
+    pub storage: Storage,
+}
+
+/// Where proxy points come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProxySource {
+    /// A generated distribution.
+    Shape(ProxyShape),
+    /// Another input's samples (2-way blending without proxy, paper eq. 3): index into `inputs`.
+    Input(usize),
+}
+
+/// The `[proxy]` section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProxySpec {
+    /// Shape or input.
+    pub source: ProxySource,
+    /// Points in the proxy and in every input.
+    pub samples: usize,
+    /// Seed of the proxy's low-discrepancy points.
+    pub seed: u64,
+    /// Largest leaf of the query tree.
+    pub leaf_size: u32,
+}
+
+/// One `[[input]]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputSpec {
+    /// Unique name; also the archive's file stem.
+    pub name: String,
+    /// File kind (from the extension).
+    pub kind: InputKind,
+    /// Resolved input file.
+    pub path: PathBuf,
+    /// Which channel is the mass.
+    pub density: DensityChannel,
+    /// Seed of this input's importance sampling.
+    pub seed: u64,
+    /// How the file becomes a grid beyond `density` (BRDF grid resolution).
+    pub options: LoadOptions,
+    /// The domain: `Periodic` for a tileable image (the same for every input of a manifest).
+    pub wrap: Wrap,
+}
+
+impl Manifest {
+    /// Archive path of the proxy.
+    pub fn proxy_archive(&self) -> PathBuf {
+        self.output_dir.join("proxy.otb")
+    }
+
+    /// Archive path of input `name`'s map.
+    pub fn map_archive(&self, name: &str) -> PathBuf {
+        self.output_dir.join(format!("{name}.otb"))
+    }
+
+    /// The domain every input (and so the proxy and every map) lives in: all inputs agree.
+    pub fn wrap(&self) -> Wrap {
+        self.inputs.first().map_or(Wrap::Clamp, |i| i.wrap)
+    }
+
+    /// Index of the input called `name`.
+    pub fn input_index(&self, name: &str) -> Option<usize> {
+        self.inputs.iter().position(|i| i.name == name)
+    }
+
+    /// Reads and validates a manifest file.
+    pub fn load(path: &Path) -> Result<Self, ManifestError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ManifestError {
+            file: path.to_path_buf(),
+            line: 0,
+            column: 0,
+            message: format!("cannot read the manifest: {e}; check the path"),
+        })?;
+        Self::parse(path, &text)
+    }
+
+    /// Validates manifest `text` as if read from `path` (paths resolve relative to its directory).
+    ///
+    /// Sections are validated in a fixed order (output, the grid options of `[brdf]`, `[mesh]` and
+    /// `[volume]`, inputs, proxy, solver, storage), so the first error reported is always the same.
+    pub fn parse(path: &Path, text: &str) -> Result<Self, ManifestError> {
+        let loc = Locator { file: path, text };
+        let raw: RawManifest = toml::from_str(text).map_err(|e| loc.toml(e))?;
+        let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+
+        let dir = raw.output.dir.get_ref();
+        if dir.trim().is_empty() {
+            return Err(loc.at(
+                Some(raw.output.dir.span()),
+                "`output.dir` is empty: name a directory".into(),
+            ));
+        }
+        let output_dir = base.join(dir);
+
+        if raw.inputs.is_empty() {
+            return Err(loc.at(None, "no [[input]] tables: add at least one input".into()));
+        }
+        let sections = options::sections(&loc, &raw)?;
+        let inputs = inputs::inputs(&loc, &base, &raw.inputs, &sections)?;
+        let proxy = proxy::proxy(&loc, &raw.proxy, &inputs)?;
+        let periodic = inputs.first().is_some_and(|i| i.wrap == Wrap::Periodic);
+        let solver = solver::solver(&loc, &raw.solver, periodic)?;
+        let storage = storage::storage(&loc, raw.storage.as_ref())?;
+
+        Ok(Manifest {
+            path: path.to_path_buf(),
+            output_dir,
+            proxy,
+            solver,
+            inputs,
+            storage,
+        })
+    }
+}
