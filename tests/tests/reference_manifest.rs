@@ -2,7 +2,7 @@
 //! it offers (a run of `#>` lines) still parses when swapped in, it names every section, key and
 //! value the parser takes, and its active part bakes.
 
-use otbake::bake::{bake, BakeOptions, Status};
+use otbake::{bake, BakeOptions, Status};
 use otbake::manifest::{Manifest, ProxySource};
 use otbake::proxy::ProxyShape;
 use otbake_formats::storage::Storage;
