@@ -90,7 +90,7 @@ fn main() -> anyhow::Result<()> {
     println!("  (checksum {sink:.3})");
     let mut single = vec![0f32; sizes.total()];
     for (i, spec) in m.inputs.iter().enumerate() {
-        let grid = otbake::pipeline::bake::load_input(spec)?;
+        let grid = otbake::pipeline::load_input(spec)?;
         // The map's points: the blend with weight 1 on this input.
         let mut e = vec![0.0; k];
         e[i] = 1.0;

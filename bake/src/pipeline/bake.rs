@@ -11,20 +11,15 @@
 //! `bake`, by `bake_one` in a build system, on any machine, gives the same bytes.
 
 use crate::fsio;
-use crate::input::mesh::voxelize::Fit;
-use crate::input::{self, DensityChannel, Grid};
-use crate::manifest::{InputSpec, Manifest, ProxySource};
-use crate::pipeline::archive::{MapData, ProxyData};
+use crate::input::Grid;
+use crate::manifest::Manifest;
+use crate::pipeline::archive::ProxyData;
+use crate::pipeline::build::{build_map, build_proxy, describe_proxy, load_input};
 use crate::pipeline::error::BakeError;
-use crate::pipeline::key::KeyBuilder;
+use crate::pipeline::key::{map_key, proxy_key};
 use crate::pipeline::stat::StatIndex;
 use crate::pipeline::store::{self, Store};
-use crate::proxy;
-use crate::sample;
-use crate::solve::{self, Problem};
-use otbake_formats::torus::fold;
-use otbake_formats::{ArchiveKind, Composite, Wrap};
-use rayon::prelude::*;
+use otbake_formats::ArchiveKind;
 use rkyv::util::AlignedVec;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -121,105 +116,6 @@ pub struct BakeOptions<'a> {
     pub on_event: Option<&'a dyn Fn(&Event<'_>)>,
 }
 
-/// Decodes an input into its density grid.
-pub fn load_input(spec: &InputSpec) -> Result<Grid, BakeError> {
-    input::load_with(&spec.path, spec.density, &spec.options).map_err(|source| BakeError::Input {
-        name: spec.name.clone(),
-        source,
-    })
-}
-
-/// Bytes that identify an input: its file contents and how it is read.
-fn input_identity(
-    key: &mut KeyBuilder,
-    spec: &InputSpec,
-    index: &mut StatIndex,
-) -> Result<(), BakeError> {
-    let digest = index.digest(&spec.path)?;
-    key.field("input-file", &digest)
-        .debug("density", &spec.density)
-        .field("input-seed", &spec.seed.to_le_bytes())
-        .field("wrap", spec.wrap.name().as_bytes());
-    if spec.kind.is_brdf() {
-        key.field(
-            "brdf-resolution",
-            &(spec.options.brdf_resolution as u64).to_le_bytes(),
-        );
-    }
-    if spec.kind == input::InputKind::Volume {
-        key.debug("volume-fit", &spec.options.volume_fit);
-    }
-    if spec.kind == input::InputKind::Mesh {
-        let mesh = &spec.options.mesh;
-        key.field("mesh-resolution", &(mesh.resolution as u64).to_le_bytes())
-            .field("mesh-margin", &mesh.margin.to_bits().to_le_bytes());
-        match &mesh.fit {
-            Fit::Each => {
-                key.field("mesh-fit", b"each");
-            }
-            Fit::Common(paths) => {
-                // The common box depends on every mesh's contents, not on their order or names.
-                let mut digests = paths
-                    .iter()
-                    .map(|p| index.digest(p))
-                    .collect::<Result<Vec<_>, _>>()?;
-                digests.sort();
-                key.field("mesh-fit", b"common");
-                for d in &digests {
-                    key.field("mesh-fit-file", d);
-                }
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The proxy's key: its settings, the dimension, and (for an input proxy) that input's identity.
-pub fn proxy_key(m: &Manifest, dim: usize, index: &mut StatIndex) -> Result<[u8; 32], BakeError> {
-    let mut k = KeyBuilder::new("proxy");
-    k.field("dim", &(dim as u64).to_le_bytes())
-        .field("samples", &(m.proxy.samples as u64).to_le_bytes())
-        .field("seed", &m.proxy.seed.to_le_bytes())
-        .field("leaf-size", &m.proxy.leaf_size.to_le_bytes())
-        .field("wrap", m.wrap().name().as_bytes());
-    match &m.proxy.source {
-        ProxySource::Shape(shape) => {
-            k.debug("shape", shape);
-        }
-        ProxySource::Input(i) => {
-            k.field("shape", b"input");
-            input_identity(&mut k, &m.inputs[*i], index)?;
-        }
-    }
-    Ok(k.finish())
-}
-
-/// A map's key: the proxy key, the input's identity, the solver settings and the storage settings
-/// (not the input's name). The proxy's key does not include storage: the proxy archive is always
-/// stored in full, so changing `[storage]` rebakes maps only.
-pub fn map_key(
-    m: &Manifest,
-    proxy_key: &[u8; 32],
-    spec: &InputSpec,
-    index: &mut StatIndex,
-) -> Result<[u8; 32], BakeError> {
-    let mut k = KeyBuilder::new("map");
-    k.field("proxy", proxy_key);
-    input_identity(&mut k, spec, index)?;
-    k.field("solver", m.solver.fingerprint().as_bytes());
-    k.field("storage", &m.storage.to_codes());
-    k.field("spacing", crate::spacing::RULE.as_bytes());
-    Ok(k.finish())
-}
-
-fn composite_of(channel: DensityChannel) -> Composite {
-    match channel {
-        DensityChannel::Luminance => Composite::Additive,
-        DensityChannel::Inverted => Composite::InkOnWhite,
-        DensityChannel::Alpha => Composite::Alpha,
-    }
-}
-
 /// The dimension shared by all inputs.
 fn manifest_dim(m: &Manifest) -> Result<usize, BakeError> {
     let dim = m.inputs[0].kind.dim();
@@ -300,152 +196,200 @@ pub fn bake(m: &Manifest, opts: &BakeOptions<'_>) -> Result<BakeReport, BakeErro
             .map_or_else(|| m.output_dir.join(store::DEFAULT_DIR), Path::to_path_buf),
     );
     let mut index = StatIndex::load(&store.root().join("stat-index"));
-    let use_store = (!opts.force).then_some(&store);
-    let emit = |e: Event<'_>| {
-        if let Some(f) = opts.on_event {
-            f(&e)
-        }
+    let mut run = Run {
+        m,
+        opts,
+        store: &store,
+        index: &mut index,
     };
     let mut report = BakeReport::default();
-    let pkey = proxy_key(m, dim, &mut index)?;
-    let proxy_path = m.proxy_archive();
+    let pkey = proxy_key(m, dim, run.index)?;
+    let (maps, stale) = run.classify_maps(&pkey)?;
+    let (proxy_product, proxy_data) = run.proxy(dim, pkey, &maps, &stale)?;
+    run.emit(Event::Finished(&proxy_product));
+    report.products.push(proxy_product);
+    run.build_maps(maps, stale, proxy_data, &mut report)?;
+    index.save()?;
+    Ok(report)
+}
 
-    // Classify every map: current (on disk or in the store), failed before any work, or stale.
-    let mut maps: Vec<Option<Product>> = Vec::new();
-    let mut stale: Vec<(usize, [u8; 32], Grid)> = Vec::new();
-    for (i, spec) in m.inputs.iter().enumerate() {
+/// A map nobody decided on yet: its input index, key and decoded grid.
+type Stale = (usize, [u8; 32], Grid);
+
+/// The state one [`bake`] threads through its three steps: classify the maps, make the proxy, build
+/// the stale maps.
+struct Run<'r, 'o> {
+    m: &'r Manifest,
+    opts: &'r BakeOptions<'o>,
+    store: &'r Store,
+    index: &'r mut StatIndex,
+}
+
+impl Run<'_, '_> {
+    fn emit(&self, e: Event<'_>) {
+        if let Some(f) = self.opts.on_event {
+            f(&e)
+        }
+    }
+
+    /// Classifies every map: current (on disk or in the store), failed before any work, or stale
+    /// (`None` in the first list, its grid in the second, in input order).
+    fn classify_maps(
+        &mut self,
+        pkey: &[u8; 32],
+    ) -> Result<(Vec<Option<Product>>, Vec<Stale>), BakeError> {
+        let m = self.m;
+        let mut maps: Vec<Option<Product>> = Vec::new();
+        let mut stale: Vec<Stale> = Vec::new();
+        for (i, spec) in m.inputs.iter().enumerate() {
+            let t = Instant::now();
+            let path = m.map_archive(&spec.name);
+            let done = |status, detail: String| Product {
+                name: spec.name.clone(),
+                path: path.clone(),
+                status,
+                seconds: t.elapsed().as_secs_f64(),
+                detail,
+            };
+            let key = match map_key(m, pkey, spec, self.index) {
+                Ok(k) => k,
+                Err(e) => {
+                    maps.push(Some(done(Status::Failed, e.to_string())));
+                    continue;
+                }
+            };
+            let cur = if self.opts.force {
+                None
+            } else {
+                let store = (!self.opts.force).then_some(self.store);
+                current(&path, &key, ArchiveKind::Map, self.index, store)
+            };
+            match cur {
+                Some(Current::OnDisk) => maps.push(Some(done(Status::Cached, "current".into()))),
+                Some(Current::Stored(bytes)) => {
+                    fsio::write_atomic(&path, &bytes)?;
+                    self.index.record(&path, key);
+                    maps.push(Some(done(Status::Cached, "restored from the store".into())));
+                }
+                // Decode stale inputs before anything is written: a bad input fails only its product.
+                None => match load_input(spec) {
+                    Ok(grid) => {
+                        stale.push((i, key, grid));
+                        maps.push(None);
+                    }
+                    Err(e) => maps.push(Some(done(Status::Failed, e.to_string()))),
+                },
+            }
+        }
+        Ok((maps, stale))
+    }
+
+    /// The proxy: current, restored, or built; its data held in memory only if a map must be built.
+    fn proxy(
+        &mut self,
+        dim: usize,
+        pkey: [u8; 32],
+        maps: &[Option<Product>],
+        stale: &[Stale],
+    ) -> Result<(Product, Option<ProxyData>), BakeError> {
+        let m = self.m;
+        let proxy_path = m.proxy_archive();
         let t = Instant::now();
-        let path = m.map_archive(&spec.name);
-        let done = |status, detail: String| Product {
-            name: spec.name.clone(),
-            path: path.clone(),
+        let mut proxy_data: Option<ProxyData> = None;
+        let cur = if self.opts.force {
+            None
+        } else {
+            let store = (!self.opts.force).then_some(self.store);
+            current(&proxy_path, &pkey, ArchiveKind::Proxy, self.index, store)
+        };
+        let (status, detail) = match cur {
+            Some(Current::OnDisk) => (Status::Cached, "current".to_string()),
+            Some(Current::Stored(bytes)) => {
+                fsio::write_atomic(&proxy_path, &bytes)?;
+                self.index.record(&proxy_path, pkey);
+                (Status::Cached, "restored from the store".to_string())
+            }
+            None if stale.is_empty()
+                && m.inputs.len()
+                    == maps
+                        .iter()
+                        .flatten()
+                        .filter(|p| p.status == Status::Failed)
+                        .count() =>
+            {
+                // Every map failed before any work: writing a proxy nobody can use is not progress.
+                (Status::Failed, "not built: every input failed".to_string())
+            }
+            None => {
+                self.emit(Event::Started { name: "proxy" });
+                let data = build_proxy(m, dim, pkey)?;
+                let bytes = encoded(&proxy_path, data.encode())?;
+                publish(&proxy_path, &pkey, &bytes, Some(self.store), self.index)?;
+                proxy_data = Some(data);
+                (Status::Built, describe_proxy(m))
+            }
+        };
+        let product = Product {
+            name: "proxy".into(),
+            path: proxy_path.clone(),
             status,
             seconds: t.elapsed().as_secs_f64(),
             detail,
         };
-        let key = match map_key(m, &pkey, spec, &mut index) {
-            Ok(k) => k,
-            Err(e) => {
-                maps.push(Some(done(Status::Failed, e.to_string())));
-                continue;
-            }
-        };
-        let cur = if opts.force {
-            None
-        } else {
-            current(&path, &key, ArchiveKind::Map, &mut index, use_store)
-        };
-        match cur {
-            Some(Current::OnDisk) => maps.push(Some(done(Status::Cached, "current".into()))),
-            Some(Current::Stored(bytes)) => {
-                fsio::write_atomic(&path, &bytes)?;
-                index.record(&path, key);
-                maps.push(Some(done(Status::Cached, "restored from the store".into())));
-            }
-            // Decode stale inputs before anything is written: a bad input fails only its product.
-            None => match load_input(spec) {
-                Ok(grid) => {
-                    stale.push((i, key, grid));
-                    maps.push(None);
-                }
-                Err(e) => maps.push(Some(done(Status::Failed, e.to_string()))),
-            },
+        if !stale.is_empty() && proxy_data.is_none() {
+            proxy_data = Some(
+                crate::pipeline::archive::load_proxy_positions(&proxy_path, &pkey)
+                    .map_or_else(|| build_proxy(m, dim, pkey), Ok)?,
+            );
         }
+        Ok((product, proxy_data))
     }
 
-    // The proxy: current, restored, or built; held in memory only if a map must be built.
-    let t = Instant::now();
-    let mut proxy_data: Option<ProxyData> = None;
-    let cur = if opts.force {
-        None
-    } else {
-        current(
-            &proxy_path,
-            &pkey,
-            ArchiveKind::Proxy,
-            &mut index,
-            use_store,
-        )
-    };
-    let (status, detail) = match cur {
-        Some(Current::OnDisk) => (Status::Cached, "current".to_string()),
-        Some(Current::Stored(bytes)) => {
-            fsio::write_atomic(&proxy_path, &bytes)?;
-            index.record(&proxy_path, pkey);
-            (Status::Cached, "restored from the store".to_string())
-        }
-        None if stale.is_empty()
-            && m.inputs.len()
-                == maps
-                    .iter()
-                    .flatten()
-                    .filter(|p| p.status == Status::Failed)
-                    .count() =>
-        {
-            // Every map failed before any work: writing a proxy nobody can use is not progress.
-            (Status::Failed, "not built: every input failed".to_string())
-        }
-        None => {
-            emit(Event::Started { name: "proxy" });
-            let data = build_proxy(m, dim, pkey)?;
-            let bytes = encoded(&proxy_path, data.encode())?;
-            publish(&proxy_path, &pkey, &bytes, Some(&store), &mut index)?;
-            proxy_data = Some(data);
-            (Status::Built, describe_proxy(m))
-        }
-    };
-    let proxy_product = Product {
-        name: "proxy".into(),
-        path: proxy_path.clone(),
-        status,
-        seconds: t.elapsed().as_secs_f64(),
-        detail,
-    };
-    emit(Event::Finished(&proxy_product));
-    report.products.push(proxy_product);
-    if !stale.is_empty() && proxy_data.is_none() {
-        proxy_data = Some(
-            crate::pipeline::archive::load_proxy_positions(&proxy_path, &pkey)
-                .map_or_else(|| build_proxy(m, dim, pkey), Ok)?,
-        );
-    }
-
-    let mut stale = stale.into_iter();
-    for (i, done) in maps.into_iter().enumerate() {
-        let product = match done {
-            Some(p) => p,
-            None => {
-                let (_, key, grid) = stale.next().expect("one stale entry per undecided map");
-                let spec = &m.inputs[i];
-                emit(Event::Started { name: &spec.name });
-                let t = Instant::now();
-                let path = m.map_archive(&spec.name);
-                let proxy = proxy_data
-                    .as_ref()
-                    .expect("the proxy is loaded whenever a map is stale");
-                let built = build_map(m, i, &grid, proxy, key).and_then(|data| {
-                    let bytes = encoded(&path, data.encode())?;
-                    publish(&path, &key, &bytes, Some(&store), &mut index)?;
-                    Ok(data.solver_report)
-                });
-                let (status, detail) = match built {
-                    Ok(report) => (Status::Built, report),
-                    Err(e) => (Status::Failed, e.to_string()),
-                };
-                Product {
-                    name: spec.name.clone(),
-                    path,
-                    status,
-                    seconds: t.elapsed().as_secs_f64(),
-                    detail,
+    /// Builds every stale map and reports every map, in input order.
+    fn build_maps(
+        &mut self,
+        maps: Vec<Option<Product>>,
+        stale: Vec<Stale>,
+        proxy_data: Option<ProxyData>,
+        report: &mut BakeReport,
+    ) -> Result<(), BakeError> {
+        let m = self.m;
+        let mut stale = stale.into_iter();
+        for (i, done) in maps.into_iter().enumerate() {
+            let product = match done {
+                Some(p) => p,
+                None => {
+                    let (_, key, grid) = stale.next().expect("one stale entry per undecided map");
+                    let spec = &m.inputs[i];
+                    self.emit(Event::Started { name: &spec.name });
+                    let t = Instant::now();
+                    let path = m.map_archive(&spec.name);
+                    let proxy = proxy_data
+                        .as_ref()
+                        .expect("the proxy is loaded whenever a map is stale");
+                    let built = build_map(m, i, &grid, proxy, key).and_then(|data| {
+                        let bytes = encoded(&path, data.encode())?;
+                        publish(&path, &key, &bytes, Some(self.store), self.index)?;
+                        Ok(data.solver_report)
+                    });
+                    let (status, detail) = match built {
+                        Ok(report) => (Status::Built, report),
+                        Err(e) => (Status::Failed, e.to_string()),
+                    };
+                    Product {
+                        name: spec.name.clone(),
+                        path,
+                        status,
+                        seconds: t.elapsed().as_secs_f64(),
+                        detail,
+                    }
                 }
-            }
-        };
-        emit(Event::Finished(&product));
-        report.products.push(product);
+            };
+            self.emit(Event::Finished(&product));
+            report.products.push(product);
+        }
+        Ok(())
     }
-    index.save()?;
-    Ok(report)
 }
 
 /// Which product a hermetic [`bake_one`] action makes.
@@ -502,122 +446,4 @@ pub fn bake_one(m: &Manifest, action: &Action<'_>, output: &Path) -> Result<bool
     };
     fsio::write_atomic(output, &bytes)?;
     Ok(true)
-}
-
-fn describe_proxy(m: &Manifest) -> String {
-    let src = match &m.proxy.source {
-        ProxySource::Shape(s) => format!("{s:?}"),
-        ProxySource::Input(i) => format!("input {:?}", m.inputs[*i].name),
-    };
-    format!(
-        "{src} samples={} seed={} leaf_size={} wrap={}",
-        m.proxy.samples,
-        m.proxy.seed,
-        m.proxy.leaf_size,
-        m.wrap().name()
-    )
-}
-
-/// Samples an input's density (the target of its map, or the proxy for an input proxy).
-fn sample_input(m: &Manifest, spec: &InputSpec, grid: &Grid) -> Result<Vec<f32>, BakeError> {
-    sample::importance_sample(grid, m.proxy.samples, spec.seed).map_err(|source| {
-        BakeError::Sample {
-            what: format!("input {:?}", spec.name),
-            source,
-        }
-    })
-}
-
-fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, BakeError> {
-    let mut points = match &m.proxy.source {
-        ProxySource::Shape(shape) => proxy::proxy_points(shape, dim, m.proxy.samples, m.proxy.seed)
-            .map_err(|source| BakeError::Sample {
-                what: "proxy".into(),
-                source,
-            })?,
-        ProxySource::Input(i) => {
-            let spec = &m.inputs[*i];
-            sample_input(m, spec, &load_input(spec)?)?
-        }
-    };
-    if m.wrap() == Wrap::Periodic {
-        // On the torus 1 is 0: the uniform proxy's points that round up to 1 in f32 fold back.
-        points.par_iter_mut().for_each(|v| *v = fold(*v));
-    }
-    let order = crate::tree::tree_order(&points, dim, m.proxy.leaf_size);
-    Ok(ProxyData {
-        key,
-        dim,
-        leaf_size: m.proxy.leaf_size,
-        wrap: m.wrap(),
-        positions: crate::tree::permute(&points, dim, &order),
-        description: describe_proxy(m),
-    })
-}
-
-fn build_map(
-    m: &Manifest,
-    index: usize,
-    grid: &Grid,
-    proxy: &ProxyData,
-    key: [u8; 32],
-) -> Result<MapData, BakeError> {
-    let spec = &m.inputs[index];
-    let dim = proxy.dim;
-    let (positions, solver_report, transport_cost) = if m.proxy.source == ProxySource::Input(index)
-    {
-        // This input *is* the proxy: its map is the identity (paper eq. 3 blends against it).
-        (
-            proxy.positions.clone(),
-            "identity (input is the proxy)".to_string(),
-            0.0,
-        )
-    } else {
-        let target = sample_input(m, spec, grid)?;
-        let problem = Problem {
-            dim,
-            source: &proxy.positions,
-            target: &target,
-        };
-        let solution =
-            solve::solve_in(m.wrap(), &problem, &m.solver).map_err(|source| BakeError::Solve {
-                name: spec.name.clone(),
-                source,
-            })?;
-        let r = &solution.report;
-        (solution.mapped, r.detail.clone(), r.cost)
-    };
-    let colors = if grid.ratio.is_empty() || m.storage.colors.is_none() {
-        Vec::new()
-    } else {
-        // A periodic map's positions are lifts: its color is the texel of the folded point.
-        let wrap = proxy.wrap;
-        positions
-            .chunks_exact(dim)
-            .flat_map(|p| match wrap {
-                Wrap::Clamp => grid.ratio_at(p),
-                Wrap::Periodic => grid.ratio_at(&p.iter().map(|&v| fold(v)).collect::<Vec<_>>()),
-            })
-            .collect()
-    };
-    let spacings = if m.storage.spacings {
-        crate::spacing::spacings(&positions, dim, proxy.wrap)
-    } else {
-        Vec::new()
-    };
-    Ok(MapData {
-        key,
-        proxy_key: proxy.key,
-        dim,
-        leaf_size: proxy.leaf_size,
-        composite: composite_of(spec.density),
-        mean_mass: grid.mean_mass() as f32,
-        wrap: proxy.wrap,
-        positions,
-        colors,
-        spacings,
-        solver_report,
-        transport_cost,
-        storage: m.storage,
-    })
 }

@@ -3,6 +3,7 @@
 //!
 //! * [`bake`](mod@bake): the incremental bake of a whole manifest ([`bake::bake`]) and the hermetic
 //!   single-product bake build systems call ([`bake::bake_one`]);
+//! * `build`: products computed from their inputs (decode, sample, order, solve), as archive data;
 //! * [`key`]: the blake3 key of a product; [`store`]: the content-addressed store of archives by key;
 //!   [`stat`]: the index of file stamps that lets a no-op bake skip hashing;
 //! * [`archive`]: proxy and map data turned into archive bytes, and keys read back from disk;
@@ -16,6 +17,7 @@
 
 pub mod archive;
 pub mod bake;
+mod build;
 pub mod error;
 pub mod inspect;
 pub mod key;
@@ -24,4 +26,6 @@ pub mod stat;
 pub mod store;
 
 pub use bake::{bake, bake_one, Action, BakeOptions, BakeReport, Event, Product, Status};
+pub use build::load_input;
 pub use error::BakeError;
+pub use key::{map_key, proxy_key};

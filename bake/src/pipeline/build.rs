@@ -1,0 +1,151 @@
+//! Building products: an input decoded and sampled, the proxy ordered into its tree, and a map
+//! solved against it, as the data the archive writer encodes. Pure computation: nothing here reads
+//! the store or writes files, so `bake` and `bake_one` build the same bytes from the same key.
+
+use crate::input::{self, DensityChannel, Grid};
+use crate::manifest::{InputSpec, Manifest, ProxySource};
+use crate::pipeline::archive::{MapData, ProxyData};
+use crate::pipeline::error::BakeError;
+use crate::proxy;
+use crate::sample;
+use crate::solve::{self, Problem};
+use otbake_formats::torus::fold;
+use otbake_formats::{Composite, Wrap};
+use rayon::prelude::*;
+
+/// Decodes an input into its density grid.
+pub fn load_input(spec: &InputSpec) -> Result<Grid, BakeError> {
+    input::load_with(&spec.path, spec.density, &spec.options).map_err(|source| BakeError::Input {
+        name: spec.name.clone(),
+        source,
+    })
+}
+
+fn composite_of(channel: DensityChannel) -> Composite {
+    match channel {
+        DensityChannel::Luminance => Composite::Additive,
+        DensityChannel::Inverted => Composite::InkOnWhite,
+        DensityChannel::Alpha => Composite::Alpha,
+    }
+}
+
+pub(crate) fn describe_proxy(m: &Manifest) -> String {
+    let src = match &m.proxy.source {
+        ProxySource::Shape(s) => format!("{s:?}"),
+        ProxySource::Input(i) => format!("input {:?}", m.inputs[*i].name),
+    };
+    format!(
+        "{src} samples={} seed={} leaf_size={} wrap={}",
+        m.proxy.samples,
+        m.proxy.seed,
+        m.proxy.leaf_size,
+        m.wrap().name()
+    )
+}
+
+/// Samples an input's density (the target of its map, or the proxy for an input proxy).
+fn sample_input(m: &Manifest, spec: &InputSpec, grid: &Grid) -> Result<Vec<f32>, BakeError> {
+    sample::importance_sample(grid, m.proxy.samples, spec.seed).map_err(|source| {
+        BakeError::Sample {
+            what: format!("input {:?}", spec.name),
+            source,
+        }
+    })
+}
+
+/// The proxy's points, folded onto the torus when periodic and ordered into the query tree.
+pub(crate) fn build_proxy(m: &Manifest, dim: usize, key: [u8; 32]) -> Result<ProxyData, BakeError> {
+    let mut points = match &m.proxy.source {
+        ProxySource::Shape(shape) => proxy::proxy_points(shape, dim, m.proxy.samples, m.proxy.seed)
+            .map_err(|source| BakeError::Sample {
+                what: "proxy".into(),
+                source,
+            })?,
+        ProxySource::Input(i) => {
+            let spec = &m.inputs[*i];
+            sample_input(m, spec, &load_input(spec)?)?
+        }
+    };
+    if m.wrap() == Wrap::Periodic {
+        // On the torus 1 is 0: the uniform proxy's points that round up to 1 in f32 fold back.
+        points.par_iter_mut().for_each(|v| *v = fold(*v));
+    }
+    let order = crate::tree::tree_order(&points, dim, m.proxy.leaf_size);
+    Ok(ProxyData {
+        key,
+        dim,
+        leaf_size: m.proxy.leaf_size,
+        wrap: m.wrap(),
+        positions: crate::tree::permute(&points, dim, &order),
+        description: describe_proxy(m),
+    })
+}
+
+/// Input `index`'s map against `proxy`: solved (or the identity for the input that is the
+/// proxy), with per-point colors and spacings as `[storage]` asks.
+pub(crate) fn build_map(
+    m: &Manifest,
+    index: usize,
+    grid: &Grid,
+    proxy: &ProxyData,
+    key: [u8; 32],
+) -> Result<MapData, BakeError> {
+    let spec = &m.inputs[index];
+    let dim = proxy.dim;
+    let (positions, solver_report, transport_cost) = if m.proxy.source == ProxySource::Input(index)
+    {
+        // This input *is* the proxy: its map is the identity (paper eq. 3 blends against it).
+        (
+            proxy.positions.clone(),
+            "identity (input is the proxy)".to_string(),
+            0.0,
+        )
+    } else {
+        let target = sample_input(m, spec, grid)?;
+        let problem = Problem {
+            dim,
+            source: &proxy.positions,
+            target: &target,
+        };
+        let solution =
+            solve::solve_in(m.wrap(), &problem, &m.solver).map_err(|source| BakeError::Solve {
+                name: spec.name.clone(),
+                source,
+            })?;
+        let r = &solution.report;
+        (solution.mapped, r.detail.clone(), r.cost)
+    };
+    let colors = if grid.ratio.is_empty() || m.storage.colors.is_none() {
+        Vec::new()
+    } else {
+        // A periodic map's positions are lifts: its color is the texel of the folded point.
+        let wrap = proxy.wrap;
+        positions
+            .chunks_exact(dim)
+            .flat_map(|p| match wrap {
+                Wrap::Clamp => grid.ratio_at(p),
+                Wrap::Periodic => grid.ratio_at(&p.iter().map(|&v| fold(v)).collect::<Vec<_>>()),
+            })
+            .collect()
+    };
+    let spacings = if m.storage.spacings {
+        crate::spacing::spacings(&positions, dim, proxy.wrap)
+    } else {
+        Vec::new()
+    };
+    Ok(MapData {
+        key,
+        proxy_key: proxy.key,
+        dim,
+        leaf_size: proxy.leaf_size,
+        composite: composite_of(spec.density),
+        mean_mass: grid.mean_mass() as f32,
+        wrap: proxy.wrap,
+        positions,
+        colors,
+        spacings,
+        solver_report,
+        transport_cost,
+        storage: m.storage,
+    })
+}
