@@ -2,9 +2,9 @@
 //! it offers (a run of `#>` lines) still parses when swapped in, it names every section, key and
 //! value the parser takes, and its active part bakes.
 
-use otbake::{bake, BakeOptions, Status};
 use otbake::manifest::{Manifest, ProxySource};
 use otbake::proxy::ProxyShape;
+use otbake::{bake, BakeOptions, Status};
 use otbake_formats::storage::Storage;
 use otbake_formats::Wrap;
 use otbake_tests::{repo_root, scratch};
