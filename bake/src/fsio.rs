@@ -62,8 +62,8 @@ pub fn read_aligned(path: &Path) -> Result<AlignedVec<16>, IoError> {
 ///
 /// Why huge pages: a blend's queries stream its maps — a 256² splat of four 250K-point maps reads
 /// 20 MB per image, in eight sequential streams (each map's positions and colors). On 4 KB pages
-/// every stream crosses a page, a TLB miss, every few hundred points; on 2 MB pages a one-thread
-/// splat took 5–9% less time (BENCHMARKS.md, "Builds for x86-64-v3"). `memmap2` gives an
+/// every stream crosses a page, a TLB miss, every few hundred points; on 2 MB pages they do not,
+/// and splats measure faster (docs/decisions.md, D02). `memmap2` gives an
 /// anonymous mapping and the `madvise(MADV_HUGEPAGE)` hint without `unsafe` here; the bytes
 /// start at a 2 MB boundary inside it, so whole huge pages cover them. Files under 2 MB, and
 /// systems where the mapping fails, get an ordinary aligned heap buffer; where the kernel ignores

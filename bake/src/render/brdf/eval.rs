@@ -39,7 +39,8 @@ pub const DEFAULT_SIGMA: f32 = 0.02;
 /// Default adaptive kernel: two spacings wide (within its truncation radius a kernel holds some
 /// 900 points, `(4π/3)·6³`), between 0.0005 (0.05° in θ) and 0.03 (1.5 × [`DEFAULT_SIGMA`]: in the
 /// sparsest 5% of a 1M-point blend kernels stop growing, and a query reaches 0.09 of the cube at
-/// most). BENCHMARKS.md has the accuracy and time at other scales.
+/// most). BENCHMARKS.md has the accuracy and time at other scales; docs/decisions.md, D48, why
+/// these defaults.
 pub const DEFAULT_ADAPTIVE: AdaptiveKernel = AdaptiveKernel {
     scale: 2.0,
     min_sigma: 0.0005,
