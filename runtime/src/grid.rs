@@ -186,7 +186,7 @@ impl Prepared<'_> {
     /// Kernel sums (`density`: Σ w, `color`: Σ w·c, unscaled) of every cell of the region.
     fn grid_sums<const D: usize>(
         &self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         radius: f32,
         axes: &Axes<D>,
         shifts: Shifts,
@@ -294,7 +294,7 @@ pub(crate) fn grid_point<const D: usize>(
     axes: &Axes<D>,
     y: &[f32; D],
     c: &[f32; 3],
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     radius: f32,
     has_color: bool,
     batch: &mut Batch,
@@ -345,14 +345,14 @@ fn all<const D: usize>(spans: [Option<Span>; D]) -> Option<[Span; D]> {
 /// cell (shifted left at the region's end: the region is at least `B` cells wide). Lanes outside
 /// the cutoff add `-0.0`, which leaves every float unchanged, so each cell gets exactly the terms
 /// a point query adds, in the same order: the weights of a whole row come from one branch-free loop
-/// (the vectorized `kernel::exp`, lane by lane the operations of `kernel::Prepared::weight`).
+/// (the vectorized `kernel::exp`, lane by lane the operations of `kernel::PreparedKernel::weight`).
 #[inline(always)]
 fn grid_block<const D: usize, const B: usize>(
     axes: &Axes<D>,
     y: &[f32; D],
     c: &[f32; 3],
     spans: &[Span; D],
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     has_color: bool,
     out: &mut [PointValue],
 ) {
@@ -398,7 +398,7 @@ const BATCH: usize = 64;
 
 /// (cell, squared distance, color) triples waiting for their kernel weights: weights are computed
 /// for a whole batch in one branch-free loop the compiler vectorizes (lane by lane the same
-/// operations as one [`kernel::Prepared::weight`], so the same bits), then added in arrival order.
+/// operations as one [`kernel::PreparedKernel::weight`], so the same bits), then added in arrival order.
 pub(crate) struct Batch {
     cell: [usize; BATCH],
     r2: [f32; BATCH],
@@ -422,7 +422,7 @@ impl Batch {
         cell: usize,
         r2: f32,
         c: &[f32; 3],
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         has_color: bool,
         out: &mut [PointValue],
     ) {
@@ -454,13 +454,18 @@ impl Batch {
     /// Adds every waiting term to its cell (the accumulation of `point::point`) and empties the batch.
     /// (The 2D blocks call it before every point they take: the test of an empty batch is inlined.)
     #[inline(always)]
-    pub(crate) fn flush(&mut self, kp: kernel::Prepared, has_color: bool, out: &mut [PointValue]) {
+    pub(crate) fn flush(
+        &mut self,
+        kp: kernel::PreparedKernel,
+        has_color: bool,
+        out: &mut [PointValue],
+    ) {
         if self.len != 0 {
             self.flush_terms(kp, has_color, out);
         }
     }
 
-    fn flush_terms(&mut self, kp: kernel::Prepared, has_color: bool, out: &mut [PointValue]) {
+    fn flush_terms(&mut self, kp: kernel::PreparedKernel, has_color: bool, out: &mut [PointValue]) {
         let mut w = [0.0f32; BATCH];
         for (w, &r2) in w.iter_mut().zip(&self.r2) {
             *w = kp.weight(r2);
@@ -488,7 +493,7 @@ impl Batch {
 fn span_cells<const D: usize>(
     axes: &Axes<D>,
     spans: &[Span; D],
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     c: &[f32; 3],
     batch: &mut Batch,
     has_color: bool,
@@ -530,7 +535,7 @@ fn cells<const D: usize>(
     axes: &Axes<D>,
     lo: &[usize; D],
     hi: &[usize; D],
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     c: &[f32; 3],
     batch: &mut Batch,
     has_color: bool,

@@ -204,7 +204,7 @@ pub(crate) fn point(
     s: &impl Source,
     q: &[f32; MAX_DIM],
     kernel: Kernel,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
 ) -> Result<PointValue, Error> {
     if wrap == Wrap::Clamp {
         return Ok(point::point(s, q, kp));
@@ -299,7 +299,7 @@ pub(crate) fn splat(
     wrap: Wrap,
     s: &impl Source,
     kernel: Kernel,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     res: &[u32; MAX_DIM],
     density: &mut [f32],
     mut color: Option<&mut [f32]>,

@@ -82,13 +82,13 @@ fn kept(keep: bool, v: f32) -> f32 {
 }
 
 /// Blocks of up to [`CHUNK`] points and their colors, in point order.
-struct Chunk {
+struct Chunk4 {
     len: usize,
     block: [Block; CHUNK],
     color: [[f32; 3]; CHUNK],
 }
 
-impl Chunk {
+impl Chunk4 {
     fn new() -> Self {
         Self {
             len: 0,
@@ -115,7 +115,7 @@ impl Chunk {
     /// order passes the cutoff.
     fn splat(
         &mut self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         scale: f32,
         stride: usize,
         density: &mut [f32],
@@ -169,7 +169,7 @@ impl Chunk {
     /// are computed for them only, in one vector loop.
     fn grid(
         &mut self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         stride: usize,
         has_color: bool,
         pairs: &mut Pairs,
@@ -221,7 +221,7 @@ impl Chunk {
 const PAIRS: usize = CHUNK * B * B;
 
 /// The passing (point, cell) pairs of a chunk: region cell, squared distance, weight and the
-/// point's place in the chunk. Scratch of [`Chunk::grid`], kept between chunks.
+/// point's place in the chunk. Scratch of [`Chunk4::grid`], kept between chunks.
 struct Pairs {
     cell: [usize; PAIRS],
     r2: [f32; PAIRS],
@@ -244,7 +244,7 @@ impl Prepared<'_> {
     /// Splat of a 2D region that [`fits`]: `splat_region`'s fast path.
     pub(crate) fn splat_plane(
         &self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         radius: f32,
         axes: &Axes<2>,
         shifts: Shifts,
@@ -254,7 +254,7 @@ impl Prepared<'_> {
         let scale = kp.norm / self.n as f32;
         let mean_mass = self.mean_mass;
         let stride = axes.stride[1];
-        let mut chunk = Chunk::new();
+        let mut chunk = Chunk4::new();
         self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| {
             let cm = crate::splat::premultiplied(c, mean_mass);
             match block(axes, x, y, kp.radius2) {
@@ -291,7 +291,7 @@ impl Prepared<'_> {
     /// its own, so every cell still receives its terms in point order.
     pub(crate) fn grid_plane(
         &self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         radius: f32,
         axes: &Axes<2>,
         shifts: Shifts,
@@ -300,7 +300,7 @@ impl Prepared<'_> {
     ) {
         let has_color = self.has_color;
         let stride = axes.stride[1];
-        let mut chunk = Chunk::new();
+        let mut chunk = Chunk4::new();
         let mut pairs = Pairs::new();
         self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| match block(
             axes, x, y, kp.radius2,

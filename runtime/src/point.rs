@@ -3,7 +3,7 @@
 
 use crate::blend::{Blend, Source};
 use crate::error::Error;
-use crate::kernel::{Kernel, Prepared};
+use crate::kernel::{Kernel, PreparedKernel};
 use crate::stack::Stack;
 use crate::MAX_DIM;
 use otbake_formats::tree::Node;
@@ -50,7 +50,7 @@ impl Blend<'_, '_> {
 pub(crate) fn accumulate(
     s: &impl Source,
     q: &[f32; MAX_DIM],
-    kp: Prepared,
+    kp: PreparedKernel,
     sum: &mut f32,
     csum: &mut [f32; 3],
 ) {
@@ -94,7 +94,7 @@ pub(crate) fn accumulate(
 }
 
 /// The point value of kernel sums `sum`, `csum` ([`accumulate`]).
-pub(crate) fn finish(s: &impl Source, kp: Prepared, sum: f32, csum: [f32; 3]) -> PointValue {
+pub(crate) fn finish(s: &impl Source, kp: PreparedKernel, sum: f32, csum: [f32; 3]) -> PointValue {
     scaled(s, kp.norm / s.n() as f32, sum, csum)
 }
 
@@ -111,7 +111,7 @@ pub(crate) fn scaled(s: &impl Source, scale: f32, sum: f32, csum: [f32; 3]) -> P
 }
 
 /// A point query at `q` (finite, `dim` coordinates used) with a prepared kernel.
-pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointValue {
+pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: PreparedKernel) -> PointValue {
     let mut sum = 0.0f32;
     let mut csum = [0.0f32; 3];
     accumulate(s, q, kp, &mut sum, &mut csum);

@@ -380,7 +380,7 @@ const RUN: usize = 32;
 /// Every point the walk hands over, one at a time, through `splat_region::splat_point`.
 fn general<const D: usize>(
     s: &impl Fill,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     radius: f32,
     axes: &Axes<D>,
     shifts: Shifts,

@@ -8,7 +8,7 @@
 use crate::blend::{Blend, Source};
 use crate::error::Error;
 use crate::footprint::Axes;
-use crate::kernel::{Kernel, Prepared};
+use crate::kernel::{Kernel, PreparedKernel};
 use crate::MAX_DIM;
 
 /// How far a splat may be from point queries: the relative bound on the difference between one
@@ -127,7 +127,7 @@ pub(crate) fn check_target(
 pub(crate) fn splat(
     s: &impl Source,
     kernel: Kernel,
-    kp: Prepared,
+    kp: PreparedKernel,
     res: &[u32; MAX_DIM],
     density: &mut [f32],
     color: Option<&mut [f32]>,
@@ -143,7 +143,7 @@ pub(crate) fn splat(
 fn splat_dim<const D: usize>(
     s: &impl Source,
     kernel: Kernel,
-    kp: Prepared,
+    kp: PreparedKernel,
     res: &[u32; MAX_DIM],
     density: &mut [f32],
     mut color: Option<&mut [f32]>,
@@ -315,7 +315,7 @@ pub(crate) fn splat_cells<const D: usize>(
     cm: &[f32; 3],
     lo: &[usize; D],
     hi: &[usize; D],
-    kp: Prepared,
+    kp: PreparedKernel,
     scale: f32,
     out: &mut impl Cells,
 ) {
@@ -382,25 +382,5 @@ pub(crate) fn splat_cells<const D: usize>(
             idx[k] = lo[k];
             k += 1;
         }
-    }
-}
-
-/// `floor` for values in a small range (`core` has no float rounding without `std`).
-pub(crate) fn floor(v: f32) -> i64 {
-    let t = v as i64;
-    if (t as f32) > v {
-        t - 1
-    } else {
-        t
-    }
-}
-
-/// `ceil` for values in a small range.
-pub(crate) fn ceil(v: f32) -> i64 {
-    let t = v as i64;
-    if (t as f32) < v {
-        t + 1
-    } else {
-        t
     }
 }

@@ -78,7 +78,7 @@ impl Prepared<'_> {
     /// Every point the walk hands over, one at a time, through [`splat_point`].
     pub(crate) fn splat_points<const D: usize>(
         &self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         radius: f32,
         axes: &Axes<D>,
         shifts: Shifts,
@@ -102,7 +102,7 @@ pub(crate) fn splat_point<const D: usize>(
     axes: &Axes<D>,
     y: &[f32; D],
     cm: &[f32; 3],
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     radius: f32,
     scale: f32,
     out: &mut impl Cells,
@@ -144,7 +144,7 @@ fn splat_block<const D: usize, const B: usize>(
     y: &[f32; D],
     cm: &[f32; 3],
     spans: &[Span; D],
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     scale: f32,
     out: &mut impl Cells,
 ) {
