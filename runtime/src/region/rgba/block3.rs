@@ -8,7 +8,7 @@
 //! which in floats means `|u − i| <= R + E` for the radius in cells `R` and a rounding allowance
 //! `E` (below); so `|i − m| <= R + E + |u − m|`, and the block `m − 1 ..= m + 1` holds every
 //! counted cell whenever `|u − m| < 2 − R − E`. Points that fail that test (within `E` of a tie at
-//! R = 1.5: about one in 10⁴ at 256 cells) take the general path (`splat_region::splat_point`,
+//! R = 1.5: about one in 10⁴ at 256 cells) take the general path (`region::splat::splat_point`,
 //! exact spans), in their turn. Blocks are moved inside the region at its borders, which keeps
 //! every counted cell of the region in them.
 //!
@@ -30,13 +30,13 @@
 //! is not (none, for colors of images) takes the general path, like a point near a tie. (Masks
 //! applied to every cell's four products cost two more instructions per cell.)
 
-use super::Fill;
-use crate::footprint::Axes;
-use crate::grid::walk_nodes;
-use crate::kernel;
-use crate::periodic::Shifts;
-use crate::splat::Rgba;
-use crate::splat_region::splat_point;
+use crate::base::cells::Rgba;
+use crate::base::footprint::Axes;
+use crate::base::kernel;
+use crate::query::periodic::Shifts;
+use crate::region::fill::Fill;
+use crate::region::splat::splat_point;
+use crate::region::walk::walk_nodes;
 
 /// Points per chunk.
 const N: usize = 64;
