@@ -80,36 +80,44 @@
 //! assert_eq!(image[5], prep.point(&[0.375, 0.375], k)?);
 //! # Ok::<(), otbake_runtime::Error>(())
 //! ```
+//!
+//! # Layers
+//!
+//! Modules are layered and import only downwards (`.ci/layers` checks it, and that no file is left
+//! out of a layer):
+//!
+//! 1. `api`: [`Blend`] and [`Prepared`], all methods of each in one file, checking arguments and
+//!    calling down; `lib.rs` re-exports the public types of every layer.
+//! 2. `region`: region queries over prepared buffers: the one walk, point grids, region splats,
+//!    RGBA splats and their 2D fast paths.
+//! 3. `query`: point, range, adaptive, sample and whole-grid splat queries, generic over their
+//!    source, and their periodic wrappers.
+//! 4. `source`: what queries read: the `Source` trait, [`Sample`], a blend's maps mixed on the fly
+//!    and its prepared buffers.
+//! 5. `base`: the kernels, the traversal stack, [`Error`], archive views ([`Map`], [`Proxy`]), grid
+//!    cells ([`Region`]) and footprints.
+//! 6. `otbake_formats`: the archive format and the torus helpers, shared with the baker.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-mod adaptive;
-mod archive;
-mod blend;
-mod error;
-mod footprint;
-mod grid;
-mod kernel;
-mod periodic;
-mod plane;
-mod point;
-mod prepared;
-mod range;
-mod rgba;
-mod splat;
-mod splat_region;
-mod stack;
+mod api;
+mod base;
+mod query;
+mod region;
+mod source;
 
-pub use adaptive::AdaptiveKernel;
-pub use archive::{Map, Proxy};
-pub use blend::{Blend, Sample};
-pub use error::Error;
-pub use grid::Region;
-pub use kernel::Kernel;
+pub use api::blend::Blend;
+pub use api::prepared::Prepared;
+pub use base::archive::{Map, Proxy};
+pub use base::cells::Region;
+pub use base::error::Error;
+pub use base::kernel::Kernel;
 pub use otbake_formats::storage::{Precision, Storage};
 pub use otbake_formats::{Composite, Wrap, MAX_DIM};
-pub use point::PointValue;
-pub use prepared::{Prepared, PreparedBuffers, PreparedSizes};
-pub use range::RangeValue;
-pub use splat::{SplatTarget, SPLAT_TERM_TOLERANCE};
+pub use query::adaptive::AdaptiveKernel;
+pub use query::point::PointValue;
+pub use query::range::RangeValue;
+pub use query::splat::{SplatTarget, SPLAT_TERM_TOLERANCE};
+pub use source::premixed::{PreparedBuffers, PreparedSizes};
+pub use source::Sample;

@@ -19,7 +19,7 @@ const TRUNCATED_MASS: [f32; 4] = [0.997_300_2, 0.988_891, 0.970_709_1, 0.938_900
 
 /// A kernel prepared for one dimension: everything per-point evaluation needs, precomputed.
 #[derive(Clone, Copy, Debug)]
-pub struct Prepared {
+pub struct PreparedKernel {
     /// Squared truncation radius.
     pub radius2: f32,
     /// `-1 / (2σ²)`.
@@ -31,7 +31,7 @@ pub struct Prepared {
 impl Kernel {
     /// Prepares the kernel for dimension `dim` (1..=4); `None` if sigma is not positive and finite or
     /// so small that its normalization overflows.
-    pub fn prepare(&self, dim: usize) -> Option<Prepared> {
+    pub fn prepare(&self, dim: usize) -> Option<PreparedKernel> {
         let s = self.sigma;
         if !(s.is_finite() && s > 0.0 && (1..=4).contains(&dim)) {
             return None;
@@ -45,7 +45,7 @@ impl Kernel {
         if !(norm.is_finite() && radius2 > 0.0 && radius2.is_finite()) {
             return None;
         }
-        Some(Prepared {
+        Some(PreparedKernel {
             radius2,
             neg_inv_two_sigma2: -0.5 / (s * s),
             norm,
@@ -65,7 +65,7 @@ pub(crate) fn unit_norm(dim: usize) -> f32 {
     }
 }
 
-impl Prepared {
+impl PreparedKernel {
     /// Unnormalized weight `exp(-r²/2σ²)` of a point at squared distance `r2 <= radius2`.
     #[inline]
     pub fn weight(&self, r2: f32) -> f32 {
@@ -84,7 +84,7 @@ impl Prepared {
     }
 }
 
-impl Prepared {
+impl PreparedKernel {
     /// A splat's per-axis factor `e^(t² · −1/2σ²)` of a squared distance `t2 <= radius2` along one
     /// axis (see `SPLAT_TERM_TOLERANCE`): [`splat_exp`] of the product [`Self::weight`] takes.
     #[inline]

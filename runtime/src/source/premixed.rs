@@ -1,23 +1,21 @@
-//! A blend prepared for one weight vector: blended points, colors, node boxes and node color sums
-//! mixed once into caller-owned buffers, so queries read plain `f32` arrays instead of mixing k maps
-//! at every node and point.
+//! A blend mixed for one weight vector ([`Premixed`], the data of a [`Prepared`](crate::Prepared)):
+//! blended points, colors, node boxes and node color sums mixed once into caller-owned buffers, so
+//! queries read plain `f32` arrays instead of mixing k maps at every node and point.
 //!
-//! Every buffer entry is computed by the same `Σ w_k v_k` (same order of operations) as [`Blend`]'s
-//! queries compute on the fly, so a [`Prepared`] answers every query with exactly the bits the
-//! [`Blend`] returns for the same weights, and its boxes still contain its points.
+//! Every buffer entry is computed by the same `Σ w_k v_k` (same order of operations) as the
+//! queries of a [`Blend`](crate::Blend) compute on the fly ([`MapSet`]), so a prepared blend
+//! answers every query with exactly the bits the blend returns for the same weights, and its boxes
+//! still contain its points.
 
-use crate::blend::{leaf_box, sample, Blend, Sample, Source};
-use crate::error::Error;
-use crate::kernel::Kernel;
-use crate::point::PointValue;
-use crate::range::RangeValue;
-use crate::splat::{check_target, SplatTarget};
-use crate::stack::Stack;
-use crate::MAX_DIM;
+use crate::base::error::Error;
+use crate::base::stack::Stack;
+use crate::source::maps::MapSet;
+use crate::source::{leaf_box, Source};
 use otbake_formats::tree::{internal_count, node_count, Node};
-use otbake_formats::Wrap;
+use otbake_formats::{Wrap, MAX_DIM};
 
-/// How many `f32` each buffer of [`PreparedBuffers`] needs (see [`Blend::prepared_sizes`]).
+/// How many `f32` each buffer of [`PreparedBuffers`] needs (see
+/// [`Blend::prepared_sizes`](crate::Blend::prepared_sizes)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PreparedSizes {
     /// `n · dim` blended coordinates.
@@ -53,11 +51,29 @@ impl PreparedSizes {
             node_colors,
         })
     }
+
+    /// The sizes for the maps `set` ([`Blend::prepared_sizes`](crate::Blend::prepared_sizes)).
+    pub(crate) fn of(set: &MapSet<'_, '_>) -> Self {
+        let n = set.n as usize;
+        let nodes = node_count(set.depth) as usize;
+        let c = if set.has_color { 3 } else { 0 };
+        let nc = if set.has_color && set.missing_node_colors.is_none() {
+            3
+        } else {
+            0
+        };
+        PreparedSizes {
+            positions: n * set.dim,
+            colors: n * c,
+            node_boxes: nodes * 2 * set.dim,
+            node_colors: nodes * nc,
+        }
+    }
 }
 
-/// Caller-owned buffers a [`Prepared`] blend lives in; each at least as long as
-/// [`Blend::prepared_sizes`] says (longer buffers are fine: only the prefix is used), so one set of
-/// buffers can be reused for every weight vector.
+/// Caller-owned buffers a [`Prepared`](crate::Prepared) blend lives in; each at least as long as
+/// [`Blend::prepared_sizes`](crate::Blend::prepared_sizes) says (longer buffers are fine: only the
+/// prefix is used), so one set of buffers can be reused for every weight vector.
 pub struct PreparedBuffers<'b> {
     /// Blended coordinates.
     pub positions: &'b mut [f32],
@@ -69,19 +85,18 @@ pub struct PreparedBuffers<'b> {
     pub node_colors: &'b mut [f32],
 }
 
-/// A blend for one weight vector, mixed into caller buffers by [`Blend::prepare`]. Answers the same
-/// queries as [`Blend`] without weights, with the same results bit for bit, and the region queries
-/// [`Prepared::point_grid`] and [`Prepared::splat_region`]. `Copy` and `Sync`: share it between
-/// threads that render disjoint regions.
-#[derive(Clone, Copy, Debug)]
-pub struct Prepared<'b> {
+/// The buffers of a blend mixed for one weight vector, and what the blend shares: the data of a
+/// [`Prepared`](crate::Prepared), which its queries read.
+#[derive(Clone, Copy)]
+pub(crate) struct Premixed<'b> {
     pub(crate) dim: usize,
     pub(crate) n: u32,
     pub(crate) depth: u32,
     pub(crate) has_color: bool,
     pub(crate) missing_node_colors: Option<usize>,
     pub(crate) mean_mass: f32,
-    /// The domain; a periodic blend's queries see every image of its points ([`crate::periodic`]).
+    /// The domain; a periodic blend's queries see every image of its points
+    /// ([`periodic`](crate::query::periodic)).
     pub(crate) wrap: Wrap,
     pub(crate) positions: &'b [f32],
     pub(crate) colors: &'b [f32],
@@ -178,53 +193,16 @@ fn for_each_leaf(n: u32, depth: u32, mut f: impl FnMut(Node)) {
     }
 }
 
-impl<'a> Blend<'a, '_> {
-    /// Buffer sizes [`Blend::prepare`] needs.
-    pub fn prepared_sizes(&self) -> PreparedSizes {
-        let n = self.n as usize;
-        let nodes = node_count(self.depth) as usize;
-        let c = if self.has_color { 3 } else { 0 };
-        let nc = if self.has_color && self.has_node_colors() {
-            3
-        } else {
-            0
-        };
-        PreparedSizes {
-            positions: n * self.dim,
-            colors: n * c,
-            node_boxes: nodes * 2 * self.dim,
-            node_colors: nodes * nc,
-        }
-    }
-
-    /// Mixes the blend for `weights` into `buffers` once, for as many queries as the caller likes,
-    /// decoding quantized maps on the way (queries then read plain `f32` arrays). Costs one pass over
-    /// every map (about `k · (dim + 3) · n` multiply-adds) and one over the leaves; worth it from a
-    /// few hundred point queries on, or for any splat or region query. [`Blend::prepare_with`]
-    /// runs its two halves on two threads.
-    pub fn prepare<'b>(
-        &self,
-        weights: &[f32],
-        buffers: PreparedBuffers<'b>,
-    ) -> Result<Prepared<'b>, Error> {
-        self.prepare_with(weights, buffers, |geometry, color| {
-            geometry();
-            color();
-        })
-    }
-
-    /// [`Blend::prepare`], with its two independent halves — positions, node boxes and leaf boxes;
-    /// colors and node color sums — handed to `join`, which may run them at the same time (with
-    /// rayon: `|a, b| { rayon::join(|| a(), || b()); }`). Each half writes its own buffers, so the
-    /// result is the same bits however they run; a half that `join` does not call is run after it.
-    pub fn prepare_with<'b>(
-        &self,
+impl<'b> Premixed<'b> {
+    /// Mixes `set` for `weights` (checked) into `buffers`, the two halves through `join`: the body
+    /// of [`Blend::prepare_with`](crate::Blend::prepare_with).
+    pub(crate) fn mix(
+        set: &MapSet<'_, '_>,
         weights: &[f32],
         buffers: PreparedBuffers<'b>,
         join: impl FnOnce(&mut (dyn FnMut() + Send), &mut (dyn FnMut() + Send)),
-    ) -> Result<Prepared<'b>, Error> {
-        self.check_weights(weights)?;
-        let sizes = self.prepared_sizes();
+    ) -> Result<Self, Error> {
+        let sizes = PreparedSizes::of(set);
         let PreparedBuffers {
             positions,
             colors,
@@ -242,9 +220,9 @@ impl<'a> Blend<'a, '_> {
         let colors = take(colors, sizes.colors)?;
         let node_boxes = take(node_boxes, sizes.node_boxes)?;
         let node_colors = take(node_colors, sizes.node_colors)?;
-        let (d, n, depth) = (self.dim, self.n, self.depth);
+        let (d, n, depth) = (set.dim, set.n, set.depth);
         let internal = internal_count(depth) as usize;
-        let with_sums = node_colors.len() >= node_count(depth) as usize * 3 && self.has_color;
+        let with_sums = node_colors.len() >= node_count(depth) as usize * 3 && set.has_color;
         {
             let (positions, node_boxes) = (&mut *positions, &mut *node_boxes);
             let (colors, node_colors) = (&mut *colors, &mut *node_colors);
@@ -255,7 +233,7 @@ impl<'a> Blend<'a, '_> {
                 }
                 let inner = (internal * 2 * d).min(node_boxes.len());
                 let (inner_boxes, _) = node_boxes.split_at_mut(inner);
-                for (k, (&w, m)) in weights.iter().zip(self.maps).enumerate() {
+                for (k, (&w, m)) in weights.iter().zip(set.maps).enumerate() {
                     let (first, v) = (k == 0, m.view());
                     match v.positions_f32() {
                         Some(values) => mix_stream(positions, w, first, values),
@@ -275,12 +253,12 @@ impl<'a> Blend<'a, '_> {
             };
             let mut color_done = false;
             let mut color = || {
-                if core::mem::replace(&mut color_done, true) || !self.has_color {
+                if core::mem::replace(&mut color_done, true) || !set.has_color {
                     return;
                 }
                 let inner = (internal * 3).min(node_colors.len());
                 let (inner_colors, _) = node_colors.split_at_mut(inner);
-                for (k, (&w, m)) in weights.iter().zip(self.maps).enumerate() {
+                for (k, (&w, m)) in weights.iter().zip(set.maps).enumerate() {
                     let (first, v) = (k == 0, m.view());
                     match v.colors_f32() {
                         Some(values) => mix_stream(colors, w, first, values),
@@ -298,14 +276,14 @@ impl<'a> Blend<'a, '_> {
             geometry();
             color();
         }
-        Ok(Prepared {
-            dim: self.dim,
-            n: self.n,
-            depth: self.depth,
-            has_color: self.has_color,
-            missing_node_colors: self.missing_node_colors,
-            mean_mass: self.mixed_mean_mass(weights),
-            wrap: self.wrap,
+        Ok(Premixed {
+            dim: set.dim,
+            n: set.n,
+            depth: set.depth,
+            has_color: set.has_color,
+            missing_node_colors: set.missing_node_colors,
+            mean_mass: set.mixed_mean_mass(weights),
+            wrap: set.wrap,
             positions,
             colors,
             node_boxes,
@@ -314,92 +292,7 @@ impl<'a> Blend<'a, '_> {
     }
 }
 
-impl Prepared<'_> {
-    /// Dimension.
-    pub fn dim(&self) -> usize {
-        self.dim
-    }
-
-    /// Number of points.
-    pub fn n(&self) -> u32 {
-        self.n
-    }
-
-    /// Whether the blend carries color (otherwise colors are zeros).
-    pub fn has_color(&self) -> bool {
-        self.has_color
-    }
-
-    /// Blended mean mass `Σ w_k mean_mass_k`: a point value's `mass` is `density × mean_mass()`.
-    pub fn mean_mass(&self) -> f32 {
-        self.mean_mass
-    }
-
-    /// How the domain treats its borders (see [`Blend::wrap`]).
-    pub fn wrap(&self) -> Wrap {
-        self.wrap
-    }
-
-    /// Blended coordinates, `n · dim`, point-major in tree order. A periodic blend's are lifts
-    /// (within half a period of `[0,1)^d`; fold them to get points of the torus).
-    pub fn positions(&self) -> &[f32] {
-        self.positions
-    }
-
-    /// Blended color ratios, `n · 3` (empty without color).
-    pub fn colors(&self) -> &[f32] {
-        self.colors
-    }
-
-    /// Checks a query point and copies it into a fixed array.
-    pub(crate) fn point_arg(&self, p: &[f32]) -> Result<[f32; MAX_DIM], Error> {
-        crate::blend::point_arg(self.dim, p)
-    }
-
-    /// [`Blend::point`] for the prepared weights (same result, bit for bit).
-    pub fn point(&self, p: &[f32], kernel: Kernel) -> Result<PointValue, Error> {
-        let q = self.point_arg(p)?;
-        let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        crate::periodic::point(self.wrap, self, &q, kernel, kp)
-    }
-
-    /// [`Blend::range`] for the prepared weights (same result, bit for bit).
-    pub fn range(&self, lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
-        if let Some(map) = self.missing_node_colors {
-            return Err(Error::MissingAttribute {
-                map,
-                attribute: "node color sums",
-            });
-        }
-        let qlo = self.point_arg(lo)?;
-        let qhi = self.point_arg(hi)?;
-        Ok(crate::periodic::range(self.wrap, self, &qlo, &qhi))
-    }
-
-    /// [`Blend::sample`] for the prepared weights (same result, bit for bit).
-    pub fn sample(&self, index: u32) -> Result<Sample, Error> {
-        Ok(crate::periodic::fold_sample(
-            self.wrap,
-            sample(self, index)?,
-        ))
-    }
-
-    /// [`Blend::splat`] for the prepared weights (same result, bit for bit): the whole grid as one
-    /// [`Prepared::splat_region`].
-    pub fn splat(&self, kernel: Kernel, target: SplatTarget<'_>) -> Result<(), Error> {
-        kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        let SplatTarget {
-            res,
-            density,
-            color,
-        } = target;
-        // The errors of `Blend::splat`.
-        check_target(self.dim, &res, density, color.as_deref())?;
-        self.splat_region(kernel, crate::grid::Region::full(res), density, color)
-    }
-}
-
-impl Source for Prepared<'_> {
+impl Source for Premixed<'_> {
     type Leaf = ();
     fn leaf_state(&self) {}
     #[inline]

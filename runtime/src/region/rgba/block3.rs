@@ -8,7 +8,7 @@
 //! which in floats means `|u − i| <= R + E` for the radius in cells `R` and a rounding allowance
 //! `E` (below); so `|i − m| <= R + E + |u − m|`, and the block `m − 1 ..= m + 1` holds every
 //! counted cell whenever `|u − m| < 2 − R − E`. Points that fail that test (within `E` of a tie at
-//! R = 1.5: about one in 10⁴ at 256 cells) take the general path (`splat_region::splat_point`,
+//! R = 1.5: about one in 10⁴ at 256 cells) take the general path (`region::splat::splat_point`,
 //! exact spans), in their turn. Blocks are moved inside the region at its borders, which keeps
 //! every counted cell of the region in them.
 //!
@@ -22,7 +22,7 @@
 //!
 //! Points go in chunks of [`N`]: one vector loop places all blocks (three squared distances per
 //! axis, centers by the grid's formula `(i + ½)/res`, the same bits as `Axes`' table), one
-//! computes all factors (`kernel::Prepared::factor`, lane by lane the reference's operations),
+//! computes all factors (`kernel::PreparedKernel::factor`, lane by lane the reference's operations),
 //! one the nine cells' weights `w = g_0 · (g_1 · scale)` (the reference's products), `−0.0` where
 //! the cutoff test fails; then each point adds `[cm, 1] · w` to each of its nine cells, one 4-wide
 //! product and sum per cell. A dropped cell adds `cm · −0.0 = −0.0`, which changes no float,
@@ -30,13 +30,13 @@
 //! is not (none, for colors of images) takes the general path, like a point near a tie. (Masks
 //! applied to every cell's four products cost two more instructions per cell.)
 
-use super::Fill;
-use crate::footprint::Axes;
-use crate::grid::walk_nodes;
-use crate::kernel;
-use crate::periodic::Shifts;
-use crate::splat::Rgba;
-use crate::splat_region::splat_point;
+use crate::base::cells::Rgba;
+use crate::base::footprint::Axes;
+use crate::base::kernel;
+use crate::query::periodic::Shifts;
+use crate::region::fill::Fill;
+use crate::region::splat::splat_point;
+use crate::region::walk::walk_nodes;
 
 /// Points per chunk.
 const N: usize = 64;
@@ -116,7 +116,7 @@ fn int(m: f32) -> u32 {
 
 /// Points waiting for their blocks (positions and color ratios, in point order), and the scratch
 /// of their splat (kept between chunks: zeroing it for every chunk cost a tenth of the time).
-struct Chunk {
+struct Chunk3 {
     len: usize,
     pos: [f32; 2 * N],
     col: [f32; 3 * N],
@@ -142,14 +142,14 @@ struct Ctx<'a> {
     axes: &'a Axes<2>,
     x: Axis,
     y: Axis,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     radius: f32,
     scale: f32,
     mean_mass: f32,
     stride: usize,
 }
 
-impl Chunk {
+impl Chunk3 {
     /// Adds the splat of every waiting point and empties the chunk.
     fn splat(&mut self, cx: &Ctx<'_>, out: &mut Rgba<'_>) {
         let len = self.len.min(N);
@@ -270,7 +270,7 @@ impl Chunk {
 /// Splat of a 2D region that [`fits`], into RGBA cells.
 pub(crate) fn splat(
     s: &impl Fill,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     radius: f32,
     axes: &Axes<2>,
     shifts: Shifts,
@@ -286,7 +286,7 @@ pub(crate) fn splat(
         mean_mass: s.mean_mass(),
         stride: axes.stride[1],
     };
-    let mut chunk = Chunk {
+    let mut chunk = Chunk3 {
         len: 0,
         pos: [0.0; 2 * N],
         col: [0.0; 3 * N],

@@ -19,16 +19,15 @@
 //! ([`Error::PeriodicKernel`]), so a query tries at most 11 shifts per axis, nearly all of which
 //! end at the root (in 2D a query usually runs 1 to 4 real traversals).
 
-use crate::adaptive;
-use crate::blend::{Sample, Source};
-use crate::error::Error;
-use crate::kernel::{self, Kernel};
-use crate::point::{self, PointValue};
-use crate::range::{self, RangeValue};
-use crate::MAX_DIM;
+use crate::base::error::Error;
+use crate::base::kernel::{self, Kernel};
+use crate::query::adaptive::{self, Spaced};
+use crate::query::point::{self, PointValue};
+use crate::query::range::{self, RangeValue};
+use crate::source::{Sample, Source};
 use otbake_formats::torus::{floor_f32, fold};
 use otbake_formats::tree::Node;
-use otbake_formats::{Wrap, LIFT_MAX, LIFT_MIN};
+use otbake_formats::{Wrap, LIFT_MAX, LIFT_MIN, MAX_DIM};
 
 /// A source moved by `−shift`: every position and node box minus `shift` (the image of the blend
 /// one period `shift` over).
@@ -85,6 +84,17 @@ impl<S: Source> Source for Shifted<'_, S> {
     #[inline]
     fn node_color(&self, node: Node) -> [f32; 3] {
         self.inner.node_color(node)
+    }
+}
+
+impl<S: Spaced> Spaced for Shifted<'_, S> {
+    #[inline]
+    fn spacing(&self, i: usize) -> f32 {
+        self.inner.spacing(i)
+    }
+    #[inline]
+    fn node_spacing(&self, node: Node) -> f32 {
+        self.inner.node_spacing(node)
     }
 }
 
@@ -204,7 +214,7 @@ pub(crate) fn point(
     s: &impl Source,
     q: &[f32; MAX_DIM],
     kernel: Kernel,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
 ) -> Result<PointValue, Error> {
     if wrap == Wrap::Clamp {
         return Ok(point::point(s, q, kp));
@@ -226,7 +236,7 @@ pub(crate) fn point(
 /// torus the sum over every image of the blend within the largest kernel's reach.
 pub(crate) fn point_adaptive(
     wrap: Wrap,
-    s: &impl adaptive::Spaced,
+    s: &impl Spaced,
     q: &[f32; MAX_DIM],
     k: &adaptive::Checked,
 ) -> Result<PointValue, Error> {
@@ -299,13 +309,13 @@ pub(crate) fn splat(
     wrap: Wrap,
     s: &impl Source,
     kernel: Kernel,
-    kp: kernel::Prepared,
+    kp: kernel::PreparedKernel,
     res: &[u32; MAX_DIM],
     density: &mut [f32],
     mut color: Option<&mut [f32]>,
 ) -> Result<(), Error> {
     if wrap == Wrap::Clamp {
-        crate::splat::splat(s, kernel, kp, res, density, color);
+        crate::query::splat::splat(s, kernel, kp, res, density, color);
         return Ok(());
     }
     let reach = periodic_reach(kernel)?;
@@ -326,7 +336,7 @@ pub(crate) fn splat(
             continue;
         }
         let shifted = Shifted { inner: s, shift };
-        crate::splat::splat(&shifted, kernel, kp, res, density, color.as_deref_mut());
+        crate::query::splat::splat(&shifted, kernel, kp, res, density, color.as_deref_mut());
     }
     Ok(())
 }
@@ -354,7 +364,7 @@ fn centers_box(
 pub(crate) fn region_shifts(
     wrap: Wrap,
     s: &impl Source,
-    region: &crate::grid::Region,
+    region: &crate::base::cells::Region,
     kernel: Kernel,
 ) -> Result<Shifts, Error> {
     if wrap == Wrap::Clamp {

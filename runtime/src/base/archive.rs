@@ -1,13 +1,12 @@
 //! Validated views of proxy and map archives.
 
-use crate::error::Error;
-use crate::MAX_DIM;
+use crate::base::error::Error;
 use otbake_formats::map::ArchivedMap;
 use otbake_formats::open::open_proxy;
 use otbake_formats::proxy::ArchivedProxy;
 use otbake_formats::storage::Storage;
 use otbake_formats::view::MapView;
-use otbake_formats::{Composite, Wrap};
+use otbake_formats::{Composite, Wrap, MAX_DIM};
 
 /// An opened proxy archive. Opening checks header, checksum, rkyv validity and sizes once, so
 /// queries never re-validate.

@@ -1,33 +1,11 @@
-//! Region splats into RGBA cells ([`Prepared::splat_region_rgba`], [`Blend::splat_region_rgba`]):
-//! four floats per cell (the three premultiplied color channels, then the density where alpha
-//! goes), so that one point's term at one cell is one 4-wide vector.
-//!
-//! The points come from the same walk as every region query (`grid::walk_nodes`: pruning by node
-//! boxes, whole subtrees handed over, one pass per image of a periodic blend), a run of points at
-//! a time ([`Fill`]): copied from a [`Prepared`] blend's buffers, or mixed from the maps on the fly
-//! (`Mixed`: the blend needs no `prepare` — no buffers, no pass over the points outside the region,
-//! no node boxes mixed but those the walk visits), in exactly the operations `Blend::prepare`
-//! uses, so both give the bits of the reference splat ([`Blend::splat`]).
-//!
-//! 2D regions with kernels of truncation radius up to 1.5 cells (σ ≤ 0.5 cell) take the 3×3
-//! blocks of [`block3`]; everything else goes one point at a time through the general paths of
-//! `splat_region` (`splat_region::splat_point`), which add to RGBA cells as they add to planar
-//! buffers (`splat::Cells`). Either way a cell receives the reference's terms in the reference's
-//! order, so a region splat equals the same cells of the full splat bit for bit, however the grid
-//! is split, and whether the blend was prepared or not.
+//! The points of a blend as region splats read them ([`Fill`]), a run at a time: copied from a
+//! prepared blend's buffers ([`Premixed`]), or mixed from the maps on the fly ([`Mixed`]), in
+//! exactly the operations `Blend::prepare` uses, so both give the same bits.
 
-mod block3;
-
-use crate::archive::Map;
-use crate::blend::Blend;
-use crate::error::Error;
-use crate::footprint::Axes;
-use crate::grid::{walk_nodes, Region, Tree};
-use crate::kernel::{self, Kernel};
-use crate::periodic::Shifts;
-use crate::prepared::{mix_stream, Prepared};
-use crate::splat::{premultiplied, Rgba};
-use crate::splat_region::splat_point;
+use crate::base::archive::Map;
+use crate::region::walk::Tree;
+use crate::source::maps::MapSet;
+use crate::source::premixed::{mix_stream, Premixed};
 use otbake_formats::storage::dequantize;
 use otbake_formats::storage::Precision;
 use otbake_formats::tree::Node;
@@ -44,7 +22,7 @@ pub(crate) trait Fill: Tree {
     fn fill<const D: usize>(&self, node: Node, start: usize, pos: &mut [f32], col: &mut [f32]);
 }
 
-impl Fill for Prepared<'_> {
+impl Fill for Premixed<'_> {
     fn dim(&self) -> usize {
         self.dim
     }
@@ -69,7 +47,7 @@ impl Fill for Prepared<'_> {
 /// same bits. Leaves are visited without a box test (their box would cost mixing their points).
 /// Runs may span leaves: quantized positions are decoded a leaf parent at a time, on its grid.
 pub(crate) struct Mixed<'s, 'a, 'm> {
-    blend: &'s Blend<'a, 'm>,
+    set: &'s MapSet<'a, 'm>,
     weights: &'s [f32],
     mean_mass: f32,
     /// With `u8` colors in every map (and at most [`TABLES`] maps): `w_k · v` for every code `v`
@@ -85,16 +63,16 @@ pub(crate) struct Mixed<'s, 'a, 'm> {
 const TABLES: usize = 4;
 
 impl<'s, 'a, 'm> Mixed<'s, 'a, 'm> {
-    pub(crate) fn new(blend: &'s Blend<'a, 'm>, weights: &'s [f32]) -> Self {
-        let u8_colors = blend.has_color
-            && blend.maps.len() <= TABLES
-            && blend
+    pub(crate) fn new(set: &'s MapSet<'a, 'm>, weights: &'s [f32]) -> Self {
+        let u8_colors = set.has_color
+            && set.maps.len() <= TABLES
+            && set
                 .maps
                 .iter()
                 .all(|m| m.storage().colors == Some(Precision::U8));
         let color_tables = u8_colors.then(|| {
             let mut t = [[[0.0f32; 256]; 3]; TABLES];
-            for ((t, m), &w) in t.iter_mut().zip(blend.maps).zip(weights) {
+            for ((t, m), &w) in t.iter_mut().zip(set.maps).zip(weights) {
                 for (c, t) in t.iter_mut().enumerate() {
                     for (q, t) in t.iter_mut().enumerate() {
                         *t = w * m.view().color_code_value(c, q as u32);
@@ -104,15 +82,15 @@ impl<'s, 'a, 'm> Mixed<'s, 'a, 'm> {
             t
         });
         Self {
-            blend,
+            set,
             weights,
-            mean_mass: blend.mixed_mean_mass(weights),
+            mean_mass: set.mixed_mean_mass(weights),
             color_tables,
-            f32_positions: blend
+            f32_positions: set
                 .maps
                 .iter()
                 .all(|m| m.storage().positions == Precision::F32),
-            f32_colors: blend
+            f32_colors: set
                 .maps
                 .iter()
                 .all(|m| m.storage().colors == Some(Precision::F32)),
@@ -122,20 +100,20 @@ impl<'s, 'a, 'm> Mixed<'s, 'a, 'm> {
 
 impl Tree for Mixed<'_, '_, '_> {
     fn n(&self) -> u32 {
-        self.blend.n
+        self.set.n
     }
     fn depth(&self) -> u32 {
-        self.blend.depth
+        self.set.depth
     }
     #[inline(always)]
     fn node_box<const D: usize>(&self, node: Node) -> Option<([f32; D], [f32; D])> {
-        if node.level >= self.blend.depth {
+        if node.level >= self.set.depth {
             return Some(([f32::NEG_INFINITY; D], [f32::INFINITY; D]));
         }
         // `Blend::node_box` of an internal node.
         let mut lo = [0.0f32; D];
         let mut hi = [0.0f32; D];
-        for (w, m) in self.weights.iter().zip(self.blend.maps) {
+        for (w, m) in self.weights.iter().zip(self.set.maps) {
             let (l, h) = m.view().internal_box(node.index as usize);
             for k in 0..D {
                 lo[k] += w * l[k];
@@ -151,7 +129,7 @@ impl Tree for Mixed<'_, '_, '_> {
 
 impl Fill for Mixed<'_, '_, '_> {
     fn dim(&self) -> usize {
-        self.blend.dim
+        self.set.dim
     }
     fn mean_mass(&self) -> f32 {
         self.mean_mass
@@ -159,7 +137,7 @@ impl Fill for Mixed<'_, '_, '_> {
     #[inline(always)]
     fn fill<const D: usize>(&self, _node: Node, start: usize, pos: &mut [f32], col: &mut [f32]) {
         let count = pos.len() / D;
-        let (maps, color) = (self.blend.maps, self.blend.has_color);
+        let (maps, color) = (self.set.maps, self.set.has_color);
         let four = <[f32; 4]>::try_from(self.weights).ok();
         // Positions. Four `f32` maps (the usual 4-way blend): one pass reads the four streams
         // side by side.
@@ -171,7 +149,7 @@ impl Fill for Mixed<'_, '_, '_> {
             // Map by map, each adding `w · v` to zeros (the bits of `mix`); quantized positions
             // a leaf parent at a time (they decode on its grid).
             pos.fill(0.0);
-            let (n, depth) = (self.blend.n, self.blend.depth);
+            let (n, depth) = (self.set.n, self.set.depth);
             let mut at = 0;
             while at < count {
                 let (leaf, end) = if f32_positions {
@@ -336,126 +314,5 @@ fn mix4(out: &mut [f32], w: &[f32; 4], src: [&[u8]; 4]) {
         for (k, s) in src.iter().enumerate() {
             mix_stream(out, w[k], k == 0, f32s(s));
         }
-    }
-}
-
-/// Checks an RGBA region buffer: four values per cell of `region`.
-fn check(dim: usize, region: &Region, rgba: &[f32]) -> Result<usize, Error> {
-    let cells = region.cells(dim)?;
-    let expected = cells.checked_mul(4).ok_or(Error::BadRegion { axis: 0 })?;
-    if rgba.len() != expected {
-        return Err(Error::BufferSize {
-            expected,
-            found: rgba.len(),
-        });
-    }
-    Ok(cells)
-}
-
-/// The region splat of `s` into checked RGBA cells, over the images in `shifts`.
-fn splat(s: &impl Fill, kernel: Kernel, region: Region, shifts: Shifts, rgba: &mut [f32]) {
-    let Some(kp) = kernel.prepare(s.dim()) else {
-        return;
-    };
-    let radius = kernel.sigma * kernel::TRUNCATION;
-    let mut out = Rgba { cells: rgba };
-    match s.dim() {
-        1 => general(s, kp, radius, &region.axes::<1>(), shifts, &mut out),
-        2 => {
-            let axes = region.axes::<2>();
-            if block3::fits(&axes, radius) {
-                block3::splat(s, kp, radius, &axes, shifts, &mut out);
-            } else {
-                general(s, kp, radius, &axes, shifts, &mut out);
-            }
-        }
-        3 => general(s, kp, radius, &region.axes::<3>(), shifts, &mut out),
-        _ => general(s, kp, radius, &region.axes::<4>(), shifts, &mut out),
-    }
-}
-
-/// Points handed over at a time by the general path.
-const RUN: usize = 32;
-
-/// Every point the walk hands over, one at a time, through `splat_region::splat_point`.
-fn general<const D: usize>(
-    s: &impl Fill,
-    kp: kernel::Prepared,
-    radius: f32,
-    axes: &Axes<D>,
-    shifts: Shifts,
-    out: &mut Rgba<'_>,
-) {
-    let scale = kp.norm / s.n() as f32;
-    let mean_mass = s.mean_mass();
-    let mut pos = [0.0f32; RUN * 4];
-    let mut col = [0.0f32; RUN * 3];
-    walk_nodes(s, axes, radius, kp.radius2, shifts, |node, m| {
-        let range = node.range();
-        let mut start = range.start;
-        while start < range.end {
-            let count = (range.end - start).min(RUN);
-            let (p, c) = (&mut pos[..count * D], &mut col[..count * 3]);
-            s.fill::<D>(node, start, p, c);
-            for (y, c) in p.chunks_exact(D).zip(c.chunks_exact(3)) {
-                // The point in the image being visited, as `periodic::Shifted` moves it.
-                let y: [f32; D] = core::array::from_fn(|k| y[k] - m[k]);
-                let cm = premultiplied([c[0], c[1], c[2]], mean_mass);
-                splat_point(axes, &y, &cm, kp, radius, scale, out);
-            }
-            start += count;
-        }
-    });
-}
-
-impl Prepared<'_> {
-    /// [`Prepared::splat_region`] into RGBA cells: `rgba` holds four values per cell of `region`
-    /// (axis 0 fastest) — the three premultiplied color channels, then the density (where alpha
-    /// goes) — and receives
-    /// exactly the bits [`Blend::splat`] adds to the density and color buffers of those cells of the
-    /// whole grid (a blend without color adds zeros to the color channels, as it does to a color
-    /// buffer). The
-    /// renderers' layout: one cell is one 4-wide vector, which makes 2D splats with σ up to half a
-    /// cell (the image case) about twice as fast as planar buffers.
-    pub fn splat_region_rgba(
-        &self,
-        kernel: Kernel,
-        region: Region,
-        rgba: &mut [f32],
-    ) -> Result<(), Error> {
-        kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        let cells = check(self.dim, &region, rgba)?;
-        let shifts = crate::periodic::region_shifts(self.wrap, self, &region, kernel)?;
-        if cells > 0 {
-            splat(self, kernel, region, shifts, rgba);
-        }
-        Ok(())
-    }
-}
-
-impl Blend<'_, '_> {
-    /// [`Prepared::splat_region_rgba`] without preparing: the maps are mixed for `weights` as the
-    /// region's traversal reads them — only the points (and node boxes) it visits — into the same
-    /// bits [`Blend::prepare`] would write, so the result is the same bits as a prepared blend's
-    /// and those of the same cells of [`Blend::splat`]. The fast way to splat a blend whose weights
-    /// change every frame: no buffers, and the mixing shares the region's threads (bands of an
-    /// image on as many threads as the caller likes).
-    pub fn splat_region_rgba(
-        &self,
-        weights: &[f32],
-        kernel: Kernel,
-        region: Region,
-        rgba: &mut [f32],
-    ) -> Result<(), Error> {
-        self.check_weights(weights)?;
-        kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        let cells = check(self.dim, &region, rgba)?;
-        let s = Mixed::new(self, weights);
-        let shifts =
-            crate::periodic::region_shifts(self.wrap, &self.weighted(weights), &region, kernel)?;
-        if cells > 0 {
-            splat(&s, kernel, region, shifts, rgba);
-        }
-        Ok(())
     }
 }

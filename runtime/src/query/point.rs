@@ -1,12 +1,11 @@
 //! Point queries: the blended density and color at a point, reconstructed with a truncated
 //! Gaussian kernel (paper §4.2, §5.2).
 
-use crate::blend::{Blend, Source};
-use crate::error::Error;
-use crate::kernel::{Kernel, Prepared};
-use crate::stack::Stack;
-use crate::MAX_DIM;
+use crate::base::kernel::PreparedKernel;
+use crate::base::stack::Stack;
+use crate::source::Source;
 use otbake_formats::tree::Node;
+use otbake_formats::MAX_DIM;
 
 /// What a point query returns.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -30,27 +29,12 @@ pub(crate) fn box_distance2(p: &[f32], lo: &[f32], hi: &[f32]) -> f32 {
     d2
 }
 
-impl Blend<'_, '_> {
-    /// Density, mass and color of the blend for `weights` at `p` (`dim()` coordinates in `[0,1]`).
-    ///
-    /// Visits only nodes whose blended box lies within 3σ of `p`. Kernel sums are accumulated in
-    /// `f32`: a query sums at most a few hundred terms of similar size. On a periodic blend `p` is
-    /// a point of the torus (any coordinates; they are folded into `[0,1)`) and the kernel wraps
-    /// around it (module `periodic`).
-    pub fn point(&self, weights: &[f32], p: &[f32], kernel: Kernel) -> Result<PointValue, Error> {
-        self.check_weights(weights)?;
-        let q = self.point_arg(p)?;
-        let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        crate::periodic::point(self.wrap, &self.weighted(weights), &q, kernel, kp)
-    }
-}
-
 /// Kernel sums at `q` (finite, `dim` coordinates used): `sum` += Σ weights, `csum` += Σ weight ×
 /// color ratio, over the points within the kernel's reach, in point-index order.
 pub(crate) fn accumulate(
     s: &impl Source,
     q: &[f32; MAX_DIM],
-    kp: Prepared,
+    kp: PreparedKernel,
     sum: &mut f32,
     csum: &mut [f32; 3],
 ) {
@@ -94,7 +78,7 @@ pub(crate) fn accumulate(
 }
 
 /// The point value of kernel sums `sum`, `csum` ([`accumulate`]).
-pub(crate) fn finish(s: &impl Source, kp: Prepared, sum: f32, csum: [f32; 3]) -> PointValue {
+pub(crate) fn finish(s: &impl Source, kp: PreparedKernel, sum: f32, csum: [f32; 3]) -> PointValue {
     scaled(s, kp.norm / s.n() as f32, sum, csum)
 }
 
@@ -111,7 +95,7 @@ pub(crate) fn scaled(s: &impl Source, scale: f32, sum: f32, csum: [f32; 3]) -> P
 }
 
 /// A point query at `q` (finite, `dim` coordinates used) with a prepared kernel.
-pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: Prepared) -> PointValue {
+pub(crate) fn point(s: &impl Source, q: &[f32; MAX_DIM], kp: PreparedKernel) -> PointValue {
     let mut sum = 0.0f32;
     let mut csum = [0.0f32; 3];
     accumulate(s, q, kp, &mut sum, &mut csum);

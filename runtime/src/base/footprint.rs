@@ -8,8 +8,6 @@
 //! axis. Spans are decided by the same float operations as the query, so region queries built from
 //! them skip nothing a per-cell query counts.
 
-use crate::splat::{ceil, floor};
-
 /// Cells per axis a [`Lanes`] span examines at once: a point whose candidate cells (the arithmetic
 /// span plus one cell of rounding slack each side) fit in this many takes the fixed-width paths.
 /// At σ = 0.5 cell the candidates are 5–6 cells.
@@ -305,8 +303,8 @@ impl<const D: usize> Axes<D> {
         if extent.is_nan() || extent >= 1e6 {
             return self.exact(k, y, radius2);
         }
-        let a = (ceil((y - radius) * res - 0.5) - 1).max(self.first[k] as i64);
-        let b = (floor((y + radius) * res - 0.5) + 1).min(self.last[k] as i64);
+        let a = (ceil_i64((y - radius) * res - 0.5) - 1).max(self.first[k] as i64);
+        let b = (floor_i64((y + radius) * res - 0.5) + 1).min(self.last[k] as i64);
         if a > b {
             None
         } else {
@@ -323,7 +321,7 @@ impl<const D: usize> Axes<D> {
             t * t
         };
         // Estimate of the nearest cell, clamped before the integer conversion.
-        let guess = floor((y * res).clamp(first as f32, last as f32 + 1.0)).max(0) as usize;
+        let guess = floor_i64((y * res).clamp(first as f32, last as f32 + 1.0)).max(0) as usize;
         let mut m = guess.clamp(first, last);
         while m > first && f(m - 1) < f(m) {
             m -= 1;
@@ -343,5 +341,26 @@ impl<const D: usize> Axes<D> {
             b += 1;
         }
         Some((a, b))
+    }
+}
+
+/// `floor` for values in a small range, as an integer (`core` has no float rounding without `std`;
+/// `otbake_formats::torus::floor_f32` is the float one).
+fn floor_i64(v: f32) -> i64 {
+    let t = v as i64;
+    if (t as f32) > v {
+        t - 1
+    } else {
+        t
+    }
+}
+
+/// `ceil` for values in a small range, as an integer.
+fn ceil_i64(v: f32) -> i64 {
+    let t = v as i64;
+    if (t as f32) < v {
+        t + 1
+    } else {
+        t
     }
 }

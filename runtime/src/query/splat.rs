@@ -5,33 +5,33 @@
 //! [`SPLAT_TERM_TOLERANCE`] documents the weight and how far it is from a point query. A splat of a
 //! region equals the same cells of the full splat bit for bit, however the grid is split.
 
-use crate::blend::{Blend, Source};
-use crate::error::Error;
-use crate::footprint::Axes;
-use crate::kernel::{Kernel, Prepared};
-use crate::MAX_DIM;
+use crate::base::cells::{premultiplied, Cells, Planar};
+use crate::base::error::Error;
+use crate::base::footprint::Axes;
+use crate::base::kernel::{Kernel, PreparedKernel};
+use crate::source::Source;
+use otbake_formats::MAX_DIM;
 
 /// How far a splat may be from point queries: the relative bound on the difference between one
 /// splat term and the corresponding point-query term.
 ///
-/// A splat ([`Blend::splat`], `Prepared::splat`, `Prepared::splat_region`, the RGBA region
-/// splats `Prepared::splat_region_rgba` and `Blend::splat_region_rgba`) counts a point at
-/// exactly the cells a point query at the cell's center counts it (squared distance
-/// `r² = Σ_k t_k²`, summed in axis order, `<=` the squared cutoff radius), but weighs it by a
-/// product of per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`,
-/// `g_k = exp(−t_k² / 2σ²)` (computed by the splat's own exponential, `kernel::splat_exp`, a
-/// shorter one than the point query's) and `scale = norm / n` (a color channel:
-/// `(c · mean mass) · (g_0 · P)`, the density's weight times the premultiplied color, so that
-/// one weight per cell serves all four channels of an RGBA cell),
-/// instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact arithmetic the two
-/// are equal (the Gaussian is separable); the product lets a splat compute `d` small tables of
-/// factors per point instead of an exponential per (point, cell) pair, which is what makes
-/// whole-image splats cheap.
+/// A splat ([`Blend::splat`](crate::Blend::splat), `Prepared::splat`, `Prepared::splat_region`, the
+/// RGBA region splats `Prepared::splat_region_rgba` and `Blend::splat_region_rgba`) counts a point
+/// at exactly the cells a point query at the cell's center counts it (squared distance `r² = Σ_k
+/// t_k²`, summed in axis order, `<=` the squared cutoff radius), but weighs it by a product of
+/// per-axis factors, `g_0 · P` with `P = g_1 · (… · (g_{d−1} · scale))`, `g_k = exp(−t_k² / 2σ²)`
+/// (computed by the splat's own exponential, `kernel::splat_exp`, a shorter one than the point
+/// query's) and `scale = norm / n` (a color channel: `(c · mean mass) · (g_0 · P)`, the density's
+/// weight times the premultiplied color, so that one weight per cell serves all four channels of an
+/// RGBA cell), instead of the point query's `exp(−r² / 2σ²)`, summed, then scaled. In exact
+/// arithmetic the two are equal (the Gaussian is separable); the product lets a splat compute `d`
+/// small tables of factors per point instead of an exponential per (point, cell) pair, which is
+/// what makes whole-image splats cheap.
 ///
 /// In floats they differ by rounding. With `u = 2⁻²⁴` and exponents `|x| <= 4.5` inside the cutoff:
 /// the point query's exponent carries at most `4.5·d·u` of rounding (the `d − 1` additions of `r²`
 /// and the product by `−1/2σ²`), the splat's `d` exponents together `4.5·u` (each is rounded once
-/// and they sum to the point query's), every exponential 3e-7 relative (tested in `kernel.rs`:
+/// and they sum to the point query's), every exponential 3e-7 relative (tested in `base/kernel.rs`:
 /// one `exp` for the query, `d` of `splat_exp`, within 2.5e-7, for the splat), and the splat's `d`
 /// products `u` each: at most 3.1e-6 per term in 4 dimensions. The constant states 1e-5, which also covers the point query's final scaling.
 /// Summing `m` terms in `f32`, in the same order, adds at most `m·u` relative error to each of the
@@ -53,38 +53,6 @@ pub struct SplatTarget<'b> {
     pub density: &'b mut [f32],
     /// Three premultiplied color values per cell, added to like `density`; `None` to skip color.
     pub color: Option<&'b mut [f32]>,
-}
-
-impl Blend<'_, '_> {
-    /// Adds the kernel reconstruction of the blend for `weights` to every cell center of `target`:
-    /// each cell gets the density and color a point query at its center returns, within the
-    /// tolerance [`SPLAT_TERM_TOLERANCE`] states (the splat weighs each point by a product of
-    /// per-axis Gaussian factors; it counts exactly the points a query counts). On a periodic
-    /// blend every point's kernel wraps around the grid's borders.
-    pub fn splat(
-        &self,
-        weights: &[f32],
-        kernel: Kernel,
-        target: SplatTarget<'_>,
-    ) -> Result<(), Error> {
-        self.check_weights(weights)?;
-        let kp = kernel.prepare(self.dim).ok_or(Error::BadSigma)?;
-        let SplatTarget {
-            res,
-            density,
-            color,
-        } = target;
-        check_target(self.dim, &res, density, color.as_deref())?;
-        crate::periodic::splat(
-            self.wrap,
-            &self.weighted(weights),
-            kernel,
-            kp,
-            &res,
-            density,
-            color,
-        )
-    }
 }
 
 /// Checks that `density` holds one value per cell of a `res` grid (every resolution >= 1) and
@@ -127,7 +95,7 @@ pub(crate) fn check_target(
 pub(crate) fn splat(
     s: &impl Source,
     kernel: Kernel,
-    kp: Prepared,
+    kp: PreparedKernel,
     res: &[u32; MAX_DIM],
     density: &mut [f32],
     color: Option<&mut [f32]>,
@@ -143,13 +111,13 @@ pub(crate) fn splat(
 fn splat_dim<const D: usize>(
     s: &impl Source,
     kernel: Kernel,
-    kp: Prepared,
+    kp: PreparedKernel,
     res: &[u32; MAX_DIM],
     density: &mut [f32],
     mut color: Option<&mut [f32]>,
 ) {
     let axes = Axes::<D>::new(&res[..D], &[0; D], &res[..D]);
-    let radius = kernel.sigma * crate::kernel::TRUNCATION;
+    let radius = kernel.sigma * crate::base::kernel::TRUNCATION;
     let scale = kp.norm / s.n() as f32;
     let mean_mass = s.mean_mass();
     let depth = s.depth();
@@ -181,124 +149,6 @@ fn splat_dim<const D: usize>(
     }
 }
 
-/// A point's color ratio times the blend's mean mass: the factor of its weight in every color term.
-#[inline(always)]
-pub(crate) fn premultiplied(c: [f32; 3], mean_mass: f32) -> [f32; 3] {
-    c.map(|c| c * mean_mass)
-}
-
-/// The cells a splat adds its terms to, in one of the two layouts a caller can give: planar (one
-/// density per cell, optionally three color values per cell) or RGBA (four values per cell: the
-/// three color channels, then the density where alpha goes). Either way a cell gets the same terms in the same
-/// order, so the layouts hold the same bits.
-pub(crate) trait Cells {
-    /// Adds one point's term to region cell `cell`: `w = g0 · p` to the density and `cm[k] · w`
-    /// to color channel `k` (see [`SPLAT_TERM_TOLERANCE`]).
-    fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32);
-
-    /// [`Cells::add`] at the `B` cells from `row`, where `keep` holds.
-    fn add_row<const B: usize>(
-        &mut self,
-        row: usize,
-        g0: &[f32; B],
-        keep: &[bool; B],
-        cm: &[f32; 3],
-        p: f32,
-    );
-}
-
-/// Planar buffers: one density per cell, and three color values per cell if given.
-pub(crate) struct Planar<'b> {
-    pub density: &'b mut [f32],
-    pub color: Option<&'b mut [f32]>,
-}
-
-impl Cells for Planar<'_> {
-    #[inline(always)]
-    fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
-        let w = g0 * p;
-        if let Some(v) = self.density.get_mut(cell) {
-            *v += w;
-        }
-        if let Some(px) = self
-            .color
-            .as_deref_mut()
-            .and_then(|c| c.get_mut(cell * 3..cell * 3 + 3))
-        {
-            for (v, c) in px.iter_mut().zip(cm) {
-                *v += c * w;
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn add_row<const B: usize>(
-        &mut self,
-        row: usize,
-        g0: &[f32; B],
-        keep: &[bool; B],
-        cm: &[f32; 3],
-        p: f32,
-    ) {
-        let w: [f32; B] = core::array::from_fn(|i| g0[i] * p);
-        if let Some(d) = self.density.get_mut(row..row + B) {
-            for ((d, &w), &keep) in d.iter_mut().zip(&w).zip(keep) {
-                if keep {
-                    *d += w;
-                }
-            }
-        }
-        if let Some(px) = self
-            .color
-            .as_deref_mut()
-            .and_then(|c| c.get_mut(row * 3..(row + B) * 3))
-        {
-            for ((px, &w), &keep) in px.chunks_exact_mut(3).zip(&w).zip(keep) {
-                if keep {
-                    for (v, c) in px.iter_mut().zip(cm) {
-                        *v += c * w;
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// RGBA cells: three color channels, then the density, per cell (a blend without color adds its
-/// zero color terms, as to a planar color buffer).
-pub(crate) struct Rgba<'b> {
-    pub cells: &'b mut [f32],
-}
-
-impl Cells for Rgba<'_> {
-    #[inline(always)]
-    fn add(&mut self, cell: usize, g0: f32, cm: &[f32; 3], p: f32) {
-        if let Some(px) = self.cells.get_mut(cell * 4..cell * 4 + 4) {
-            let w = g0 * p;
-            for (v, c) in px.iter_mut().zip(cm) {
-                *v += c * w;
-            }
-            px[3] += w;
-        }
-    }
-
-    #[inline(always)]
-    fn add_row<const B: usize>(
-        &mut self,
-        row: usize,
-        g0: &[f32; B],
-        keep: &[bool; B],
-        cm: &[f32; 3],
-        p: f32,
-    ) {
-        for i in 0..B {
-            if keep[i] {
-                self.add(row + i, g0[i], cm, p);
-            }
-        }
-    }
-}
-
 /// Candidate cells per axis whose squared distances and factors [`splat_cells`] tabulates per
 /// point (kernels wider than about 30 cells compute them per cell: the same values).
 const TABLE: usize = 64;
@@ -315,7 +165,7 @@ pub(crate) fn splat_cells<const D: usize>(
     cm: &[f32; 3],
     lo: &[usize; D],
     hi: &[usize; D],
-    kp: Prepared,
+    kp: PreparedKernel,
     scale: f32,
     out: &mut impl Cells,
 ) {
@@ -382,25 +232,5 @@ pub(crate) fn splat_cells<const D: usize>(
             idx[k] = lo[k];
             k += 1;
         }
-    }
-}
-
-/// `floor` for values in a small range (`core` has no float rounding without `std`).
-pub(crate) fn floor(v: f32) -> i64 {
-    let t = v as i64;
-    if (t as f32) > v {
-        t - 1
-    } else {
-        t
-    }
-}
-
-/// `ceil` for values in a small range.
-pub(crate) fn ceil(v: f32) -> i64 {
-    let t = v as i64;
-    if (t as f32) < v {
-        t + 1
-    } else {
-        t
     }
 }

@@ -18,10 +18,11 @@
 //!
 //! with the fixed kernel's truncation and normalization ([`crate::Kernel`], `m_d` its truncated
 //! mass), so every point's kernel integrates to 1/n and `ρ` to 1. Drawing point `i` and adding
-//! noise from `K_{σ_i}` samples `ρ` exactly (the caller draws the noise; [`Blend::bandwidth`] gives
-//! `σ_i`). `mass` and `color` follow as for [`Blend::point`]. With `scale · s` about two spacings,
-//! every kernel covers a similar number of points, wherever the blend is dense or sparse: narrow
-//! lobes keep their height, and a query in a dense region costs what one in a sparse region does.
+//! noise from `K_{σ_i}` samples `ρ` exactly (the caller draws the noise;
+//! [`Blend::bandwidth`](crate::Blend::bandwidth) gives `σ_i`). `mass` and `color` follow as for
+//! [`Blend::point`](crate::Blend::point). With `scale · s` about two spacings, every kernel covers
+//! a similar number of points, wherever the blend is dense or sparse: narrow lobes keep their
+//! height, and a query in a dense region costs what one in a sparse region does.
 //!
 //! Why a linear blend of the spacings: at weights `(1, 0, …)` it is exactly the spacing of that
 //! map's own points (for a one-to-one map, the input's samples, in whatever order the solver put
@@ -40,17 +41,17 @@
 //! Leaves are not tested as a whole: their points are cut by their parent's bound first (before
 //! their own width is blended), then each against its own `3σ_i`.
 
-use crate::blend::{mix, Blend, Source, Weighted};
-use crate::error::Error;
-use crate::kernel::{self, Kernel};
-use crate::periodic::Shifted;
-use crate::point::{box_distance2, PointValue};
-use crate::stack::Stack;
-use crate::MAX_DIM;
+use crate::base::error::Error;
+use crate::base::kernel::{self, Kernel};
+use crate::base::stack::Stack;
+use crate::query::point::{box_distance2, PointValue};
+use crate::source::maps::{mix, Weighted};
+use crate::source::Source;
 use otbake_formats::tree::Node;
+use otbake_formats::MAX_DIM;
 
-/// A density-adaptive kernel for [`Blend::point_adaptive`]: point `i` of a blend with weights `w`
-/// carries the truncated Gaussian of width
+/// A density-adaptive kernel for [`Blend::point_adaptive`](crate::Blend::point_adaptive): point `i`
+/// of a blend with weights `w` carries the truncated Gaussian of width
 ///
 /// ```text
 /// σ_i = clamp(scale · s_i, min_sigma, max_sigma),   s_i = Σ_k w_k · spacing_k[i]
@@ -128,7 +129,7 @@ impl Checked {
     }
 
     #[inline]
-    fn sigma(&self, spacing: f32) -> f32 {
+    pub(crate) fn sigma(&self, spacing: f32) -> f32 {
         self.kernel.sigma(spacing)
     }
 }
@@ -145,25 +146,14 @@ pub(crate) trait Spaced: Source {
 impl Spaced for Weighted<'_, '_, '_> {
     #[inline]
     fn spacing(&self, i: usize) -> f32 {
-        mix(self.weights, self.blend.maps, |m| m.view().spacing(i))
+        mix(self.weights, self.set.maps, |m| m.view().spacing(i))
     }
     #[inline]
     fn node_spacing(&self, node: Node) -> f32 {
         let j = node.index as usize;
-        mix(self.weights, self.blend.maps, |m| {
+        mix(self.weights, self.set.maps, |m| {
             m.view().internal_spacing(j)
         })
-    }
-}
-
-impl<S: Spaced> Spaced for Shifted<'_, S> {
-    #[inline]
-    fn spacing(&self, i: usize) -> f32 {
-        self.inner.spacing(i)
-    }
-    #[inline]
-    fn node_spacing(&self, node: Node) -> f32 {
-        self.inner.node_spacing(node)
     }
 }
 
@@ -273,68 +263,5 @@ fn add_leaf<S: Spaced>(
 
 /// The point value of normalized kernel sums ([`accumulate`]).
 pub(crate) fn finish(s: &impl Source, sum: f32, csum: [f32; 3]) -> PointValue {
-    crate::point::scaled(s, 1.0 / s.n() as f32, sum, csum)
-}
-
-impl Blend<'_, '_> {
-    /// Whether every map stores per-point spacings, which [`Blend::point_adaptive`] and
-    /// [`Blend::bandwidth`] need (maps baked by `otbake` do).
-    pub fn has_spacings(&self) -> bool {
-        self.missing_spacings.is_none()
-    }
-
-    /// The error of a query that needs spacings, if some map lacks them.
-    fn check_spacings(&self) -> Result<(), Error> {
-        match self.missing_spacings {
-            None => Ok(()),
-            Some(map) => Err(Error::MissingAttribute {
-                map,
-                attribute: "spacings",
-            }),
-        }
-    }
-
-    /// Density, mass and color of the blend for `weights` at `p` under the density-adaptive kernel
-    /// `kernel`: point `i` contributes a truncated Gaussian of its own width
-    /// `σ_i = clamp(scale · Σ_k w_k spacing_k[i], min_sigma, max_sigma)`, normalized to mass `1/n`,
-    /// so the density integrates to 1 and is exactly the density of [`Blend::sample`] plus noise
-    /// from point `i`'s kernel (width [`Blend::bandwidth`]).
-    ///
-    /// Visits only nodes within reach of their points' largest kernel; costs about the same
-    /// wherever the blend is dense or sparse. Fixed-width queries ([`Blend::point`]) are unchanged.
-    /// On a periodic blend the kernels wrap around the torus (`3 · max_sigma` at most one period).
-    ///
-    /// Errors: [`Error::MissingAttribute`] if a map stores no spacings, [`Error::BadSigma`] for a
-    /// kernel with `scale <= 0`, `min_sigma > max_sigma` or a width that is not a valid
-    /// [`Kernel`] sigma, and the errors of [`Blend::point`].
-    pub fn point_adaptive(
-        &self,
-        weights: &[f32],
-        p: &[f32],
-        kernel: AdaptiveKernel,
-    ) -> Result<PointValue, Error> {
-        self.check_weights(weights)?;
-        self.check_spacings()?;
-        let q = self.point_arg(p)?;
-        let k = kernel.check(self.dim)?;
-        crate::periodic::point_adaptive(self.wrap, &self.weighted(weights), &q, &k)
-    }
-
-    /// The kernel width `σ_i` of point `index` for `weights` under `kernel`
-    /// ([`Blend::point_adaptive`]): to sample the adaptive density, draw a point with
-    /// [`Blend::sample`] and add noise from the truncated Gaussian of this width (radius `3σ_i`).
-    pub fn bandwidth(
-        &self,
-        weights: &[f32],
-        index: u32,
-        kernel: AdaptiveKernel,
-    ) -> Result<f32, Error> {
-        self.check_weights(weights)?;
-        self.check_spacings()?;
-        let k = kernel.check(self.dim)?;
-        if index >= self.n {
-            return Err(Error::IndexOutOfRange { index, n: self.n });
-        }
-        Ok(k.sigma(self.weighted(weights).spacing(index as usize)))
-    }
+    crate::query::point::scaled(s, 1.0 / s.n() as f32, sum, csum)
 }

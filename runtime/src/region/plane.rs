@@ -11,17 +11,19 @@
 //! full cutoff test adding `-0.0`, which leaves every float unchanged (see [`kept`]); the point
 //! grid packs the passing (point, cell) pairs of the chunk first and weighs those only (an exact
 //! exponential each). Either way each cell gets exactly the terms, in the same order, of the
-//! per-cell reference: `point::point` for [`Prepared::point_grid`], `splat::splat_cells` for the
-//! splat.
-//! Points whose span on an axis is wider than four cells (possible only near the window radius)
-//! take the general paths, after the pending chunk.
+//! per-cell reference: `point::point` for [`Prepared::point_grid`](crate::Prepared::point_grid),
+//! `query::splat::splat_cells` for the splat. Points whose span on an axis is wider than four cells
+//! (possible only near the window radius) take the general paths, after the pending chunk.
 
-use crate::footprint::Axes;
-use crate::grid::Batch;
-use crate::kernel;
-use crate::periodic::Shifts;
-use crate::point::PointValue;
-use crate::prepared::Prepared;
+use crate::base::cells::{premultiplied, Planar};
+use crate::base::footprint::Axes;
+use crate::base::kernel;
+use crate::query::periodic::Shifts;
+use crate::query::point::PointValue;
+use crate::region::grid::{grid_point, Batch};
+use crate::region::splat::splat_point;
+use crate::region::walk::walk;
+use crate::source::premixed::Premixed;
 
 /// Cells of a block row, and most rows of a block.
 const B: usize = 4;
@@ -82,13 +84,13 @@ fn kept(keep: bool, v: f32) -> f32 {
 }
 
 /// Blocks of up to [`CHUNK`] points and their colors, in point order.
-struct Chunk {
+struct Chunk4 {
     len: usize,
     block: [Block; CHUNK],
     color: [[f32; 3]; CHUNK],
 }
 
-impl Chunk {
+impl Chunk4 {
     fn new() -> Self {
         Self {
             len: 0,
@@ -115,7 +117,7 @@ impl Chunk {
     /// order passes the cutoff.
     fn splat(
         &mut self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         scale: f32,
         stride: usize,
         density: &mut [f32],
@@ -169,7 +171,7 @@ impl Chunk {
     /// are computed for them only, in one vector loop.
     fn grid(
         &mut self,
-        kp: kernel::Prepared,
+        kp: kernel::PreparedKernel,
         stride: usize,
         has_color: bool,
         pairs: &mut Pairs,
@@ -221,7 +223,7 @@ impl Chunk {
 const PAIRS: usize = CHUNK * B * B;
 
 /// The passing (point, cell) pairs of a chunk: region cell, squared distance, weight and the
-/// point's place in the chunk. Scratch of [`Chunk::grid`], kept between chunks.
+/// point's place in the chunk. Scratch of [`Chunk4::grid`], kept between chunks.
 struct Pairs {
     cell: [usize; PAIRS],
     r2: [f32; PAIRS],
@@ -240,71 +242,66 @@ impl Pairs {
     }
 }
 
-impl Prepared<'_> {
-    /// Splat of a 2D region that [`fits`]: `splat_region`'s fast path.
-    pub(crate) fn splat_plane(
-        &self,
-        kp: kernel::Prepared,
-        radius: f32,
-        axes: &Axes<2>,
-        shifts: Shifts,
-        density: &mut [f32],
-        mut color: Option<&mut [f32]>,
-    ) {
-        let scale = kp.norm / self.n as f32;
-        let mean_mass = self.mean_mass;
-        let stride = axes.stride[1];
-        let mut chunk = Chunk::new();
-        self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| {
-            let cm = crate::splat::premultiplied(c, mean_mass);
-            match block(axes, x, y, kp.radius2) {
-                Ok(Some(b)) => {
-                    if chunk.len == CHUNK {
-                        chunk.splat(kp, scale, stride, density, color.as_deref_mut());
-                    }
-                    chunk.push(b, cm);
-                }
-                Ok(None) => {}
-                Err(()) => {
+/// Splat of a 2D region that [`fits`]: `region::splat_region`'s fast path.
+pub(crate) fn splat_plane(
+    s: &Premixed<'_>,
+    kp: kernel::PreparedKernel,
+    radius: f32,
+    axes: &Axes<2>,
+    shifts: Shifts,
+    density: &mut [f32],
+    mut color: Option<&mut [f32]>,
+) {
+    let scale = kp.norm / s.n as f32;
+    let mean_mass = s.mean_mass;
+    let stride = axes.stride[1];
+    let mut chunk = Chunk4::new();
+    walk(s, axes, radius, kp.radius2, shifts, |&[x, y], &c| {
+        let cm = premultiplied(c, mean_mass);
+        match block(axes, x, y, kp.radius2) {
+            Ok(Some(b)) => {
+                if chunk.len == CHUNK {
                     chunk.splat(kp, scale, stride, density, color.as_deref_mut());
-                    let mut out = crate::splat::Planar {
-                        density: &mut *density,
-                        color: color.as_deref_mut(),
-                    };
-                    crate::splat_region::splat_point(
-                        axes,
-                        &[x, y],
-                        &cm,
-                        kp,
-                        radius,
-                        scale,
-                        &mut out,
-                    );
                 }
+                chunk.push(b, cm);
             }
-        });
-        chunk.splat(kp, scale, stride, density, color);
-    }
+            Ok(None) => {}
+            Err(()) => {
+                chunk.splat(kp, scale, stride, density, color.as_deref_mut());
+                let mut out = Planar {
+                    density: &mut *density,
+                    color: color.as_deref_mut(),
+                };
+                splat_point(axes, &[x, y], &cm, kp, radius, scale, &mut out);
+            }
+        }
+    });
+    chunk.splat(kp, scale, stride, density, color);
+}
 
-    /// Kernel sums of a 2D region that [`fits`]: `point_grid`'s fast path. Points the blocks do
-    /// not take go through `batch`; each path empties the other's pending points before adding
-    /// its own, so every cell still receives its terms in point order.
-    pub(crate) fn grid_plane(
-        &self,
-        kp: kernel::Prepared,
-        radius: f32,
-        axes: &Axes<2>,
-        shifts: Shifts,
-        batch: &mut Batch,
-        out: &mut [PointValue],
-    ) {
-        let has_color = self.has_color;
-        let stride = axes.stride[1];
-        let mut chunk = Chunk::new();
-        let mut pairs = Pairs::new();
-        self.walk(axes, radius, kp.radius2, shifts, |&[x, y], &c| match block(
-            axes, x, y, kp.radius2,
-        ) {
+/// Kernel sums of a 2D region that [`fits`]: `point_grid`'s fast path. Points the blocks do
+/// not take go through `batch`; each path empties the other's pending points before adding
+/// its own, so every cell still receives its terms in point order.
+pub(crate) fn grid_plane(
+    s: &Premixed<'_>,
+    kp: kernel::PreparedKernel,
+    radius: f32,
+    axes: &Axes<2>,
+    shifts: Shifts,
+    batch: &mut Batch,
+    out: &mut [PointValue],
+) {
+    let has_color = s.has_color;
+    let stride = axes.stride[1];
+    let mut chunk = Chunk4::new();
+    let mut pairs = Pairs::new();
+    walk(
+        s,
+        axes,
+        radius,
+        kp.radius2,
+        shifts,
+        |&[x, y], &c| match block(axes, x, y, kp.radius2) {
             Ok(Some(b)) => {
                 batch.flush(kp, has_color, out);
                 if chunk.len == CHUNK {
@@ -315,9 +312,9 @@ impl Prepared<'_> {
             Ok(None) => {}
             Err(()) => {
                 chunk.grid(kp, stride, has_color, &mut pairs, out);
-                crate::grid::grid_point(axes, &[x, y], &c, kp, radius, has_color, batch, out);
+                grid_point(axes, &[x, y], &c, kp, radius, has_color, batch, out);
             }
-        });
-        chunk.grid(kp, stride, has_color, &mut pairs, out);
-    }
+        },
+    );
+    chunk.grid(kp, stride, has_color, &mut pairs, out);
 }

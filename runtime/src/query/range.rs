@@ -1,10 +1,9 @@
 //! Range queries: how much of the blend lies in a box, for level of detail (paper §4.2, §6.2).
 
-use crate::blend::{Blend, Source};
-use crate::error::Error;
-use crate::stack::Stack;
-use crate::MAX_DIM;
+use crate::base::stack::Stack;
+use crate::source::Source;
 use otbake_formats::tree::Node;
+use otbake_formats::MAX_DIM;
 
 /// What a range query returns: integrals over the query box.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -15,32 +14,6 @@ pub struct RangeValue {
     pub mass: f32,
     /// Integral of the premultiplied color over the box: `mean mass × Σ_inside color ratio / n`.
     pub color: [f32; 3],
-}
-
-impl Blend<'_, '_> {
-    /// Points, mass and color of the blend for `weights` inside the closed box [`lo`, `hi`].
-    ///
-    /// Nodes whose blended box lies inside the query are taken whole (their count and stored color
-    /// sums), disjoint nodes are skipped, so the cost follows the box's boundary, not its area.
-    ///
-    /// A blend with color needs every map's node color sums: if one was baked without them
-    /// (`[storage] node_colors = false`), this returns [`Error::MissingAttribute`].
-    ///
-    /// On a periodic blend the box is a box of the torus: it may cross the borders (give it as,
-    /// e.g., `[0.9, 1.1]`; each piece is counted), an axis at least one period wide covers the
-    /// whole circle, and a box with `hi < lo` on some axis is empty, as when clamped.
-    pub fn range(&self, weights: &[f32], lo: &[f32], hi: &[f32]) -> Result<RangeValue, Error> {
-        self.check_weights(weights)?;
-        self.check_node_colors()?;
-        let qlo = self.point_arg(lo)?;
-        let qhi = self.point_arg(hi)?;
-        Ok(crate::periodic::range(
-            self.wrap,
-            &self.weighted(weights),
-            &qlo,
-            &qhi,
-        ))
-    }
 }
 
 /// Counts the points inside the closed box [`qlo`, `qhi`] (finite, `dim` coordinates used) into
