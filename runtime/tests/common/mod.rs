@@ -6,6 +6,7 @@ use otbake_formats::proxy::Proxy as ProxyData;
 use otbake_formats::storage::{Precision, Storage};
 use otbake_formats::tree::{depth, fill_node_boxes, node_count};
 use otbake_formats::write::{encode_map_content, encode_proxy, MapContent};
+use otbake_runtime::{Blend, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region};
 use rkyv::util::AlignedVec;
 
 /// A tiny deterministic generator (SplitMix64) so tests need no RNG dependency.
@@ -206,4 +207,45 @@ pub fn weights(rng: &mut Rng, k: usize) -> Vec<f32> {
     let raw: Vec<f32> = (0..k).map(|_| rng.unit() + 0.01).collect();
     let s: f32 = raw.iter().sum();
     raw.iter().map(|v| v / s).collect()
+}
+
+// Shared by the region tests (`regions.rs`, `regions_exact.rs`).
+
+/// The fixture's archives, opened.
+pub fn open(f: &Fixture) -> (Proxy<'_>, Vec<Map<'_>>) {
+    (
+        Proxy::open(&f.proxy).unwrap(),
+        f.maps.iter().map(|m| Map::open(m).unwrap()).collect(),
+    )
+}
+
+pub fn prepare<'b>(blend: &Blend<'_, '_>, w: &[f32], store: &'b mut Vec<f32>) -> Prepared<'b> {
+    let sizes = blend.prepared_sizes();
+    store.resize(sizes.total(), f32::NAN);
+    let b: PreparedBuffers<'b> = sizes.split(store).unwrap();
+    blend.prepare(w, b).unwrap()
+}
+
+pub fn bits(v: &PointValue) -> [u32; 5] {
+    [
+        v.density.to_bits(),
+        v.mass.to_bits(),
+        v.color[0].to_bits(),
+        v.color[1].to_bits(),
+        v.color[2].to_bits(),
+    ]
+}
+
+/// Global cell of region cell `cell` (axis 0 fastest), and its center.
+pub fn global(dim: usize, region: &Region, cell: usize) -> (usize, Vec<f32>) {
+    let (mut rest, mut g, mut stride) = (cell, 0, 1);
+    let mut c = vec![0.0; dim];
+    for a in 0..dim {
+        let i = region.start[a] as usize + rest % region.size[a] as usize;
+        rest /= region.size[a] as usize;
+        c[a] = (i as f32 + 0.5) / region.res[a] as f32;
+        g += i * stride;
+        stride *= region.res[a] as usize;
+    }
+    (g, c)
 }
