@@ -26,7 +26,7 @@
 //! chunks concatenated in order, so the kernel's bytes do not depend on the thread count.
 
 use super::hierarchy::{Hierarchy, Level};
-use crate::solve::cost;
+use crate::cost;
 use otbake_formats::Wrap;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};

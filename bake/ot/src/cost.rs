@@ -166,7 +166,7 @@ pub fn transport_cost(dim: usize, source: &[f32], mapped: &[f32]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solve::rng::SplitMix64;
+    use crate::rng::SplitMix64;
 
     /// The squared torus distance by brute force: the minimum over the 3^d shifts of `b`.
     fn brute_torus_sq(a: &[f64], b: &[f64]) -> f64 {

@@ -358,7 +358,7 @@ fn check_permutation(x: &[u32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solve::rng::SplitMix64;
+    use crate::rng::SplitMix64;
 
     /// `n` points in `[0,1)^dim`, clustered (half in a small box) so spacings vary.
     fn cloud(rng: &mut SplitMix64, n: usize, dim: usize) -> Vec<f32> {
@@ -386,7 +386,7 @@ mod tests {
     fn exact_cost(dim: usize, e: &[f32], t: &[f32]) -> f64 {
         let n = e.len() / dim;
         let cost = |i: usize, j: usize| sq_dist(at(e, dim, i), at(t, dim, j));
-        let lap = crate::solve::exact::lapjv(n, &cost, crate::solve::extent_sq(dim, e, t));
+        let lap = crate::exact::lapjv(n, &cost, crate::extent_sq(dim, e, t));
         (0..n).map(|i| cost(i, lap.x[i] as usize)).sum::<f64>() / n as f64
     }
 
