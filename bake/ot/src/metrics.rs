@@ -2,7 +2,7 @@
 //!
 //! * [`cost_ratio`]: transport cost over the exact optimum's cost on the same samples. Near 1 for a
 //!   good map; below 1 means the map under-transports (it does not reach the target distribution,
-//!   as GeomLoss's one-iteration-per-ε maps do, NOTES.md), above 1 that it takes detours.
+//!   as GeomLoss's maps do: they run one Sinkhorn iteration per ε), above 1 that it takes detours.
 //! * [`l2_uvp`]: the L2 unexplained variance percentage 100·E|T̂(x) − T*(x)|² / Var(target) of
 //!   Korotin et al. 2021 ("Do neural optimal transport solvers work?"), against a reference map T*:
 //!   the exact matching of the same samples, or a closed form such as [`GaussianMap`].
@@ -11,53 +11,18 @@
 //!   can have the right cost and still not land on the target distribution.
 //!
 //! Every metric is deterministic for any rayon thread count: sums go through fixed-size chunks added
-//! in a fixed order (never `par_iter().sum()` of floats, NOTES.md), and per-direction results are
-//! collected in order before they are added.
+//! in a fixed order (never `par_iter().sum()` of floats, whose grouping follows rayon's work
+//! splitting), and per-direction results are collected in order before they are added.
 
 use super::cost::{det_sum, sq_dist};
+use super::SolveError;
 use rayon::prelude::*;
 
-/// Why a metric could not be computed.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum MetricError {
-    #[error("point dimension must be at least 1 (got 0)")]
-    ZeroDim,
-    #[error("{which} has {len} coordinates, but {expected} were expected ({n} points of dimension {dim})")]
-    Length {
-        which: &'static str,
-        len: usize,
-        expected: usize,
-        n: usize,
-        dim: usize,
-    },
-    #[error("{which} has {len} coordinates, which is not a multiple of dim = {dim}")]
-    NotMultiple {
-        which: &'static str,
-        len: usize,
-        dim: usize,
-    },
-    #[error("point clouds are empty")]
-    Empty,
-    #[error("the target has zero variance: L2-UVP is relative to it and undefined")]
-    ZeroVariance,
-    #[error("the exact cost {exact} is not a positive finite number: a cost ratio needs one")]
-    BadExactCost { exact: f64 },
-    #[error("{what} must be finite (got {value})")]
-    NonFinite { what: &'static str, value: f64 },
-    #[error("{which} covariance is not symmetric positive definite (smallest eigenvalue {min_eigenvalue:e})")]
-    NotPositiveDefinite {
-        which: &'static str,
-        min_eigenvalue: f64,
-    },
-    #[error("{which} standard deviation {value} on axis {axis} is not positive")]
-    BadStd {
-        which: &'static str,
-        axis: usize,
-        value: f64,
-    },
-    #[error("at least one direction is needed")]
-    NoDirections,
-}
+/// Why a metric could not be computed: the crate's one error type, under the name the metrics
+/// have always used. Metrics return its input-shape variants (`ZeroDim`, `BadLength`, `Length`,
+/// `Empty`) and the metric-only ones (`ZeroVariance`, `BadExactCost`, `NonFiniteValue`,
+/// `NotPositiveDefinite`, `BadStd`, `NoDirections`).
+pub type MetricError = SolveError;
 
 /// Cost over the exact optimum's cost on the same samples: 1 for an optimal map.
 ///
@@ -68,7 +33,7 @@ pub fn cost_ratio(cost: f64, exact_cost: f64) -> Result<f64, MetricError> {
         return Err(MetricError::BadExactCost { exact: exact_cost });
     }
     if !cost.is_finite() {
-        return Err(MetricError::NonFinite {
+        return Err(MetricError::NonFiniteValue {
             what: "cost",
             value: cost,
         });
@@ -82,7 +47,7 @@ fn points<T>(which: &'static str, dim: usize, data: &[T]) -> Result<usize, Metri
         return Err(MetricError::ZeroDim);
     }
     if !data.len().is_multiple_of(dim) {
-        return Err(MetricError::NotMultiple {
+        return Err(MetricError::BadLength {
             which,
             len: data.len(),
             dim,
@@ -219,7 +184,7 @@ impl GaussianMap {
             ("target covariance", cov_target),
         ] {
             if let Some(&value) = v.iter().find(|x| !x.is_finite()) {
-                return Err(MetricError::NonFinite { what, value });
+                return Err(MetricError::NonFiniteValue { what, value });
             }
         }
         let cs = symmetrize(dim, cov_source);
@@ -291,7 +256,7 @@ impl GaussianMap {
         }
         for (what, v) in [("source mean", mean_source), ("target mean", mean_target)] {
             if let Some(&value) = v.iter().find(|x| !x.is_finite()) {
-                return Err(MetricError::NonFinite { what, value });
+                return Err(MetricError::NonFiniteValue { what, value });
             }
         }
         let mut matrix = vec![0.0; dim * dim];
@@ -564,7 +529,7 @@ mod tests {
         ));
         assert!(matches!(
             cost_ratio(f64::NAN, 1.0),
-            Err(MetricError::NonFinite { .. })
+            Err(MetricError::NonFiniteValue { .. })
         ));
     }
 
@@ -607,7 +572,7 @@ mod tests {
         ));
         assert!(matches!(
             l2_uvp(3, &t, &t, &t),
-            Err(MetricError::NotMultiple { .. })
+            Err(MetricError::BadLength { .. })
         ));
         assert_eq!(l2_uvp(0, &t, &t, &t), Err(MetricError::ZeroDim));
     }

@@ -58,6 +58,7 @@ pub enum MapKind {
 }
 
 impl MapKind {
+    /// The manifest's word for it ("assignment" | "barycentric").
     pub fn name(self) -> &'static str {
         match self {
             MapKind::Assignment => "assignment",
