@@ -1,8 +1,8 @@
 //! Transport costs, the metric of the domain, and deterministic parallel sums.
 //!
 //! Floating-point addition is not associative, so a sum whose grouping depends on rayon's work
-//! splitting changes bits with the thread count (NOTES.md). Every sum here adds fixed-size chunks in
-//! a fixed order: the same bits for any thread count.
+//! splitting changes bits with the thread count. Every sum here adds fixed-size chunks in a fixed
+//! order: the same bits for any thread count.
 //!
 //! The metric is the one place the domain's [`Wrap`] enters the solvers. On the flat torus
 //! (`Wrap::Periodic`, period 1 per axis) the cost is the squared distance to the nearest image,
