@@ -72,7 +72,8 @@ pub mod proxy;
 pub mod render;
 pub mod sample;
 pub mod seam;
-pub mod solve;
+/// The OT solvers, now the `otbake-ot` crate; re-exported under their old path.
+pub use otbake_ot as solve;
 pub mod spacing;
 pub mod tree;
 

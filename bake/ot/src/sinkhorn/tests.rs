@@ -309,7 +309,7 @@ fn spacing_follows_the_denser_cloud() {
     let spacing = |a: &[[f64; 2]], b: &[[f64; 2]]| {
         let grid = Grid::new(a, b);
         let (ca, cb) = (cell_counts(a, &grid), cell_counts(b, &grid));
-        super::point_spacing(&ca, &cb, grid.side, n, 2)
+        super::schedule::point_spacing(&ca, &cb, grid.side, n, 2)
     };
     let even = spacing(&wide, &wide) * (n as f64).sqrt();
     assert!((0.9..=1.1).contains(&even), "uniform: {even} × side/√n");

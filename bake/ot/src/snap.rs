@@ -33,10 +33,10 @@
 //! matching does): Sinkhorn hands its auction near-optimal prices; from zero prices, on the 1M
 //! endpoints of garnet_red's flow (the 8 nearest samples of each endpoint, the 8 nearest endpoints
 //! of each sample and a Morton rank pair per row, so a perfect matching exists), every ε phase
-//! spent its whole bid budget (50 per row): 300M bids, 200 s, 13 092 rows left to a fallback
-//! (largest move 1.36). Warm-starting it from a coarser level (every 8th point along a Morton
-//! curve, the coarsest solved exactly, prices carried down by a c-transform, candidates around
-//! predicted positions) did not help — 2.3M bids and 74 s at 15 625 points: a subsample's duals
+//! spent its whole bid budget (50 per row): 300M bids, 13 092 rows left to a fallback (largest
+//! move 1.36). Warm-starting it from a coarser level (every 8th point along a Morton curve, the
+//! coarsest solved exactly, prices carried down by a c-transform, candidates around predicted
+//! positions) did not help — 2.3M bids (150 per point) at 15 625 points: a subsample's duals
 //! carry its own sampling noise, price errors of many fine ε. Bisection needs no prices, its
 //! work is fixed (n log n for the cuts, n · cell size² per pass for the cells), and it always
 //! ends on a permutation.
@@ -55,8 +55,8 @@ use std::ops::Range;
 /// cells of 256 (by `exact::lapjv`, 4× the time) 1.31e-4.
 pub(super) const LEAF: usize = 32;
 
-/// Cell sizes of the re-matching passes over midpoints: each pass costs n · size² (a 64-cell pass
-/// about 4 s on 1M points and two cores, a 48-cell one 2–4 s); the fourth gained 0.5%.
+/// Cell sizes of the re-matching passes over midpoints: each pass costs n · size² (a 48-cell pass
+/// measured half to all of a 64-cell one's time); the fourth gained 0.5%.
 pub(super) const PASSES: [usize; 4] = [64, 48, 64, 48];
 
 /// Revision of the snap's algorithm (part of the sliced fingerprint with `map = "assignment"`):
@@ -358,7 +358,7 @@ fn check_permutation(x: &[u32]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solve::rng::SplitMix64;
+    use crate::rng::SplitMix64;
 
     /// `n` points in `[0,1)^dim`, clustered (half in a small box) so spacings vary.
     fn cloud(rng: &mut SplitMix64, n: usize, dim: usize) -> Vec<f32> {
@@ -386,7 +386,7 @@ mod tests {
     fn exact_cost(dim: usize, e: &[f32], t: &[f32]) -> f64 {
         let n = e.len() / dim;
         let cost = |i: usize, j: usize| sq_dist(at(e, dim, i), at(t, dim, j));
-        let lap = crate::solve::exact::lapjv(n, &cost, crate::solve::extent_sq(dim, e, t));
+        let lap = crate::exact::lapjv(n, &cost, crate::extent_sq(dim, e, t));
         (0..n).map(|i| cost(i, lap.x[i] as usize)).sum::<f64>() / n as f64
     }
 

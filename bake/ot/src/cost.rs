@@ -1,8 +1,8 @@
 //! Transport costs, the metric of the domain, and deterministic parallel sums.
 //!
 //! Floating-point addition is not associative, so a sum whose grouping depends on rayon's work
-//! splitting changes bits with the thread count (NOTES.md). Every sum here adds fixed-size chunks in
-//! a fixed order: the same bits for any thread count.
+//! splitting changes bits with the thread count. Every sum here adds fixed-size chunks in a fixed
+//! order: the same bits for any thread count.
 //!
 //! The metric is the one place the domain's [`Wrap`] enters the solvers. On the flat torus
 //! (`Wrap::Periodic`, period 1 per axis) the cost is the squared distance to the nearest image,
@@ -166,7 +166,7 @@ pub fn transport_cost(dim: usize, source: &[f32], mapped: &[f32]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solve::rng::SplitMix64;
+    use crate::rng::SplitMix64;
 
     /// The squared torus distance by brute force: the minimum over the 3^d shifts of `b`.
     fn brute_torus_sq(a: &[f64], b: &[f64]) -> f64 {

@@ -3,7 +3,7 @@
 
 use super::hierarchy::{Grid, Hierarchy};
 use super::kernel::build;
-use crate::solve::cost::sq;
+use crate::cost::sq;
 use otbake_formats::Wrap;
 
 #[allow(clippy::needless_range_loop)]

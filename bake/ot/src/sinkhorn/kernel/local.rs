@@ -1,0 +1,212 @@
+//! Local rebuilds: a kernel for new potentials made from the old one by searching again only the
+//! rows and columns whose potentials moved.
+
+use super::super::hierarchy::Hierarchy;
+use super::bounds::bounds;
+use super::search::search_some;
+use super::sparse::concat;
+use super::{Kernel, CHUNK, K_MIN};
+use crate::cost;
+use crate::Wrap;
+use rayon::prelude::*;
+
+/// How a local rebuild chooses what to search again, and when it gives way.
+#[derive(Clone, Copy, Debug)]
+pub(in crate::sinkhorn) struct LocalLimits {
+    /// θ: the absolute test of the searches, C − f − g ≤ θε.
+    pub theta: f64,
+    /// Rows and columns that moved more than τε from the reference are searched again.
+    pub tau: f64,
+    /// A whole build instead (`Local::TooMany`) when more than `max_moved` rows or columns moved
+    /// more than `tau_whole`·ε (a loose rebuild, τ above `tau_whole`, gives way when a strict one
+    /// would have to).
+    pub tau_whole: f64,
+    pub max_moved: usize,
+    /// Refusal past this many pairs (`None`, like [`super::build`]).
+    pub max_pairs: usize,
+}
+
+/// What a local rebuild did.
+pub(in crate::sinkhorn) enum Local {
+    /// The new kernel, with the numbers of rows and columns searched again.
+    Built(Kernel, usize, usize),
+    /// More than the allowed number of rows or columns moved: build the whole kernel instead.
+    TooMany,
+}
+
+/// A kernel for the new target potential `g`, built from `old` by searching again only the rows and
+/// columns whose potentials moved by more than τε since the last whole build (`f0`, `g0`: the
+/// potentials of that build; `old` holds its pairs and every pair added since).
+///
+/// Why it is enough. Every pair the whole build dropped had C − f0 − g0 > θε. A pair of a row and
+/// a column that both stayed within τε of (`f0`, `g0`) therefore still has C − f − g > (θ − 2τ)ε,
+/// and the old pairs are kept. A moved column is searched with the absolute test C − f − g ≤ θε
+/// (against an upper bound of the new row minima, which only widens it), a moved row likewise; so
+/// every pair touching a moved row or column with reduced cost ≤ θε is kept. The new f is exact:
+/// a row's minimum is over its old pairs, the moved columns' new pairs, and — for a moved row — its
+/// own search; a column outside those can beat it only by moving more than τε, or for rows whose
+/// minimum rose by more than (θ − τ)ε, which are moved rows. So dropped pairs are more than
+/// (θ − 2τ)ε above zero reduced cost, K ≤ 1 still holds, and the set only grows until the next
+/// whole build. Returns `None` past `max_pairs` (like [`super::build`]).
+#[allow(clippy::too_many_arguments)]
+pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
+    src: &Hierarchy<D>,
+    tgt: &Hierarchy<D>,
+    level: usize,
+    old: &Kernel,
+    g: &[f64],
+    f0: &[f64],
+    g0: &[f64],
+    eps: f64,
+    limits: LocalLimits,
+    wrap: Wrap,
+) -> Option<Local> {
+    let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
+    let (m, nt) = (xs.len(), ys.len());
+    let LocalLimits {
+        theta,
+        tau,
+        tau_whole,
+        max_moved,
+        max_pairs,
+    } = limits;
+    let (margin, moved) = (theta * eps, tau * eps);
+    let whole = tau_whole * eps;
+    let too_many = |d: &[f64], d0: &[f64]| {
+        d.par_iter()
+            .zip(d0)
+            .filter(|(x, y)| (*x - *y).abs() > whole)
+            .count()
+            > max_moved
+    };
+    if too_many(g, g0) {
+        return Some(Local::TooMany);
+    }
+    let cols: Vec<u32> = (0..nt as u32)
+        .filter(|&j| (g[j as usize] - g0[j as usize]).abs() > moved)
+        .collect();
+    // Upper bounds of the new row minima over the old pairs.
+    let mut f: Vec<f64> = (0..m)
+        .into_par_iter()
+        .map(|i| {
+            old.col[old.row_ptr[i]..old.row_ptr[i + 1]]
+                .iter()
+                .map(|&j| cost::sq(wrap, &xs.pos[i], &ys.pos[j as usize]) - g[j as usize])
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    // Moved columns: every row with C − f − g ≤ θε.
+    let col_hits = if cols.is_empty() {
+        Vec::new()
+    } else {
+        let bnd = bounds(src, level, &f);
+        search_some(ys, src, level, &bnd, &f, &cols, |j| g[j] + margin, wrap)
+    };
+    let mut extra: Vec<(u32, u32)> = Vec::new();
+    for (&j, (rows, _)) in cols.iter().zip(&col_hits) {
+        for &i in rows {
+            let iu = i as usize;
+            let c = cost::sq(wrap, &xs.pos[iu], &ys.pos[j as usize]) - g[j as usize];
+            f[iu] = f[iu].min(c);
+            extra.push((i, j));
+        }
+    }
+    if too_many(&f, f0) {
+        return Some(Local::TooMany);
+    }
+    let rows: Vec<u32> = (0..m as u32)
+        .filter(|&i| (f[i as usize] - f0[i as usize]).abs() > moved)
+        .collect();
+    // Moved rows: every column with C − g ≤ f + θε, which also gives their exact minimum.
+    if !rows.is_empty() {
+        let bnd = bounds(tgt, level, g);
+        let row_hits = search_some(xs, tgt, level, &bnd, g, &rows, |i| f[i] + margin, wrap);
+        for (&i, (js, lowest)) in rows.iter().zip(row_hits) {
+            f[i as usize] = f[i as usize].min(lowest);
+            extra.extend(js.iter().map(|&j| (i, j)));
+        }
+    }
+    extra.par_sort_unstable();
+    extra.dedup();
+    if old.pairs() + extra.len() > max_pairs {
+        return None;
+    }
+    // Rows and columns are each the old list merged with the new pairs (both sorted), valued for
+    // the new (f, g): two parallel passes, no transpose. An entry's value is the same expression of
+    // (i, j) in both passes, so the row and column forms hold the same bits.
+    let value = |i: usize, j: usize| -> f32 {
+        let c = cost::sq(wrap, &xs.pos[i], &ys.pos[j]);
+        ((f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32
+    };
+    let (row_ptr, col, k) = merge_lists(&old.row_ptr, &old.col, &extra, value);
+    let mut by_col: Vec<(u32, u32)> = extra.iter().map(|&(i, j)| (j, i)).collect();
+    by_col.par_sort_unstable();
+    let (col_ptr, row, kt) = merge_lists(&old.col_ptr, &old.row, &by_col, |j, i| value(i, j));
+    let kernel = Kernel {
+        row_ptr,
+        col,
+        k,
+        col_ptr,
+        row,
+        kt,
+        f,
+    };
+    Some(Local::Built(kernel, rows.len(), cols.len()))
+}
+
+/// Sparse lists (`ptr`, `idx`, each list sorted) merged with new (list, entry) pairs (sorted,
+/// distinct), with `value(list, entry)` for every entry; in fixed-size chunks of lists, so the bytes
+/// do not depend on the thread count.
+fn merge_lists(
+    ptr: &[usize],
+    idx: &[u32],
+    new: &[(u32, u32)],
+    value: impl Fn(usize, usize) -> f32 + Sync,
+) -> (Vec<usize>, Vec<u32>, Vec<f32>) {
+    let m = ptr.len() - 1;
+    let mut starts = vec![0usize; m + 1];
+    for &(i, _) in new {
+        starts[i as usize + 1] += 1;
+    }
+    for i in 0..m {
+        starts[i + 1] += starts[i];
+    }
+    let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)> = (0..m.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
+            let (a, b) = (ci * CHUNK, ((ci + 1) * CHUNK).min(m));
+            let mut lens = Vec::with_capacity(b - a);
+            let cap = ptr[b] - ptr[a] + starts[b] - starts[a];
+            let mut out = Vec::with_capacity(cap);
+            let mut vals = Vec::with_capacity(cap);
+            for i in a..b {
+                let before = out.len();
+                let (old, add) = (&idx[ptr[i]..ptr[i + 1]], &new[starts[i]..starts[i + 1]]);
+                let (mut p, mut q) = (0, 0);
+                while p < old.len() || q < add.len() {
+                    let j = match (old.get(p), add.get(q)) {
+                        (Some(&x), Some(&(_, y))) => {
+                            p += usize::from(x <= y);
+                            q += usize::from(y <= x);
+                            x.min(y)
+                        }
+                        (Some(&x), None) => {
+                            p += 1;
+                            x
+                        }
+                        (None, Some(&(_, y))) => {
+                            q += 1;
+                            y
+                        }
+                        (None, None) => unreachable!("the loop runs while one side is left"),
+                    };
+                    out.push(j);
+                    vals.push(value(i, j as usize));
+                }
+                lens.push((out.len() - before) as u32);
+            }
+            (lens, out, vals)
+        })
+        .collect();
+    concat(chunks, m)
+}

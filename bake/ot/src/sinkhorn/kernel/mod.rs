@@ -1,0 +1,162 @@
+//! The truncated Gibbs kernel of one Sinkhorn stage, in sparse row (CSR) and column (CSC) form.
+//!
+//! At scale ε the plan is π_ij = u_i K_ij v_j with K_ij = exp((f_i + g_j − C_ij)/ε). A pair is kept
+//! when it can matter to its row or to its column:
+//!
+//! * row test: C_ij − g_j ≤ min_j' (C_ij' − g_j') + θε, and
+//! * column test: C_ij − f_i ≤ min_i' (C_i'j − f_i') + θε,
+//!
+//! where f_i is set to the row minimum (the hard c-transform of g), so every kept row entry is in
+//! [e^−θ, 1] and every row holds its best column. With that f the row test implies the column test
+//! (C_ij − f_i ≥ g_j for all pairs, so the column minimum is at least g_j), so a build searches each
+//! row only for its minimum and each column with the margin θε. Dropped entries are below e^−θ
+//! relative to the best entry of both their row and their column. The tests are *exact* for the
+//! given potentials, not heuristics: each is a branch-and-bound search down the other cloud's
+//! [`Hierarchy`], pruning a cell when |x − box|² − max(potential in the cell) exceeds the current
+//! threshold, which is a lower bound of C − potential for every descendant because the box holds all
+//! descendant positions.
+//!
+//! On the torus (`Wrap::Periodic`) C is the squared distance to the nearest image, and a cell's bound
+//! is the smallest of the bounds for the query's images `x − m` that can be nearest (per axis `x_k`
+//! and `x_k ∓ 1`, towards the far side: 2^d images): C(x, y) = min_m |x − m − y|², and each term is
+//! bounded below as in the Euclidean case. The hierarchy needs no change: cells are boxes of points
+//! in `[0,1)^d`, and only the bound and the costs see the metric.
+//!
+//! Determinism: every row (column) is searched independently and rows are processed in fixed-size
+//! chunks concatenated in order, so the kernel's bytes do not depend on the thread count.
+//!
+//! Here: the [`Kernel`] and its whole [`build`]; `bounds` (the affine lower bounds of a
+//! potential over the cells), `search` (the branch-and-bound searches), `local` (rebuilding only
+//! the rows and columns that moved) and `sparse` (concatenating, merging and transposing sparse
+//! lists in fixed chunks).
+
+mod bounds;
+mod local;
+mod search;
+mod sparse;
+
+pub(super) use local::{rebuild_local, Local, LocalLimits};
+
+use super::hierarchy::Hierarchy;
+use crate::cost;
+use crate::Wrap;
+use rayon::prelude::*;
+use search::search_all;
+use sparse::{assemble, transpose};
+
+/// Rows per parallel work item (fixed: the output order never depends on the thread count).
+const CHUNK: usize = 1024;
+
+/// Smallest kernel value stored: column-test pairs can be far below e^−θ relative to their row's
+/// offset; clamping keeps them representable (the scalings absorb the rest).
+const K_MIN: f64 = 1e-37;
+
+/// A sparse kernel on (source cells × target cells) of one level.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Kernel {
+    pub row_ptr: Vec<usize>,
+    pub col: Vec<u32>,
+    pub k: Vec<f32>,
+    pub col_ptr: Vec<usize>,
+    pub row: Vec<u32>,
+    pub kt: Vec<f32>,
+    /// Row offsets f_i of the kernel (the hard c-transform of g).
+    pub f: Vec<f64>,
+}
+
+impl Kernel {
+    pub fn pairs(&self) -> usize {
+        self.col.len()
+    }
+}
+
+/// Squared Euclidean distance (the tests' reference; the solver uses [`cost::sq`]).
+#[cfg(test)]
+#[inline]
+pub(super) fn sq<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
+    let mut s = 0.0;
+    for k in 0..D {
+        let d = a[k] - b[k];
+        s += d * d;
+    }
+    s
+}
+
+/// Builds the truncated kernel of one level for target potential `g` at scale `eps`, keeping pairs
+/// within `theta`·ε of their row's or column's best (see the module docs), in the metric of `wrap`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn build<const D: usize>(
+    src: &Hierarchy<D>,
+    tgt: &Hierarchy<D>,
+    level: usize,
+    g: &[f64],
+    eps: f64,
+    theta: f64,
+    wrap: Wrap,
+    max_pairs: usize,
+) -> Option<Kernel> {
+    let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
+    let margin = theta * eps;
+    // f = row minima (the hard c-transform of g), with each row's best column. The row test needs
+    // no search of its own: with f_i the row minimum, C_ij − f_i ≥ g_j for every pair, so the
+    // column minimum min_i' (C_i'j − f_i') is at least g_j, and a pair within θε of its row's best
+    // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too. A search with margin 0 finds
+    // only the minimizers, and halves the cost of a build.
+    let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap, max_pairs)?;
+    // Column test against f.
+    let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap, max_pairs)?;
+    // Column-test pairs as rows, then the union with the row-test pairs, row by row.
+    let (eptr, eidx, _) = transpose(&cptr, &cidx, xs.len());
+    let m = xs.len();
+    let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)> = (0..m.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
+            let (a, b) = (ci * CHUNK, ((ci + 1) * CHUNK).min(m));
+            let mut lens = Vec::with_capacity(b - a);
+            let mut col = Vec::new();
+            let mut k = Vec::new();
+            for i in a..b {
+                let (r, e) = (&ridx[rptr[i]..rptr[i + 1]], &eidx[eptr[i]..eptr[i + 1]]);
+                let before = col.len();
+                let (mut p, mut q) = (0, 0);
+                while p < r.len() || q < e.len() {
+                    let j = match (r.get(p), e.get(q)) {
+                        (Some(&x), Some(&y)) if x == y => {
+                            p += 1;
+                            q += 1;
+                            x
+                        }
+                        (Some(&x), Some(&y)) if x < y => {
+                            p += 1;
+                            x
+                        }
+                        (Some(_), Some(&y)) => {
+                            q += 1;
+                            y
+                        }
+                        (Some(&x), None) => {
+                            p += 1;
+                            x
+                        }
+                        (None, Some(&y)) => {
+                            q += 1;
+                            y
+                        }
+                        (None, None) => unreachable!(),
+                    };
+                    let ju = j as usize;
+                    let c = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
+                    let v = ((f[i] + g[ju] - c) / eps).exp().clamp(K_MIN, 1.0);
+                    col.push(j);
+                    k.push(v as f32);
+                }
+                lens.push((col.len() - before) as u32);
+            }
+            (lens, col, k)
+        })
+        .collect();
+    Some(assemble(chunks, m, ys.len(), f))
+}
+
+#[cfg(test)]
+mod tests;

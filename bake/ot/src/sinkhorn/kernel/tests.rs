@@ -1,0 +1,206 @@
+//! The kernel against dense scans: the truncation, the local rebuilds and the transpose.
+
+use super::super::hierarchy::Grid;
+use super::*;
+
+fn pts(seed: f64, n: usize) -> Vec<[f64; 2]> {
+    (0..n)
+        .map(|i| {
+            let t = (i as f64 + seed) * 0.754_877_666;
+            [t.fract(), ((i as f64 + seed) * 0.569_840_29).fract() * 0.5]
+        })
+        .collect()
+}
+
+/// Smooth potentials with large gradients (like real ones), optionally with noise.
+fn potential(ys: &[[f64; 2]], rough: f64) -> Vec<f64> {
+    ys.iter()
+        .enumerate()
+        .map(|(j, y)| {
+            0.9 * (y[0] * y[0] + y[1] * y[1]) - 0.6 * y[0]
+                + 0.3 * y[1]
+                + rough * 1e-3 * ((j as f64 * 12.9898).sin() * 43758.5453).fract()
+        })
+        .collect()
+}
+
+/// The block-parallel transpose equals a sequential counting transpose, for patterns with empty
+/// rows, empty columns, rows spanning many blocks and fewer columns than blocks.
+#[test]
+fn transpose_equals_sequential() {
+    for (rows, cols) in [(0usize, 3usize), (5, 2), (300, 1000), (2000, 700)] {
+        let mut ptr = vec![0usize];
+        let mut idx = Vec::new();
+        for i in 0..rows {
+            let len = (i * 7919) % 13;
+            let mut row: Vec<u32> = (0..len)
+                .map(|t| (((i * 31 + t * t * 17) % cols.max(1)) as u32).min(cols as u32 - 1))
+                .collect();
+            if i % 5 == 0 {
+                row.extend((0..cols as u32).step_by(97));
+            }
+            row.sort_unstable();
+            row.dedup();
+            idx.extend(&row);
+            ptr.push(idx.len());
+        }
+        let mut want: Vec<Vec<(u32, usize)>> = vec![Vec::new(); cols];
+        for i in 0..rows {
+            for e in ptr[i]..ptr[i + 1] {
+                want[idx[e] as usize].push((i as u32, e));
+            }
+        }
+        let (tptr, tidx, src) = transpose(&ptr, &idx, cols);
+        for j in 0..cols {
+            let got: Vec<(u32, usize)> =
+                (tptr[j]..tptr[j + 1]).map(|e| (tidx[e], src[e])).collect();
+            assert_eq!(got, want[j], "{rows}x{cols} column {j}");
+        }
+        assert_eq!(tptr[cols], idx.len());
+    }
+}
+
+/// The truncation keeps exactly the pairs a dense scan keeps.
+#[allow(clippy::needless_range_loop)]
+#[test]
+fn truncation_equals_dense_scan() {
+    let (a, b) = (pts(0.3, 700), pts(0.7, 700));
+    let grid = Grid::new(&a, &b);
+    let (hs, ht) = (Hierarchy::new(&a, &grid, 5), Hierarchy::new(&b, &grid, 5));
+    for (level, rough) in [(2usize, 0.0), (4, 1.0), (5, 0.0), (6, 0.0), (6, 1.0)] {
+        let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
+        let g = potential(&ys.pos, rough);
+        let eps = 1e-3;
+        let theta = 8.0;
+        let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
+        let f: Vec<f64> = (0..xs.len())
+            .map(|i| {
+                (0..ys.len())
+                    .map(|j| sq(&xs.pos[i], &ys.pos[j]) - g[j])
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        for i in 0..xs.len() {
+            let cols = &kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
+            for j in 0..ys.len() {
+                let c = sq(&xs.pos[i], &ys.pos[j]);
+                let row_ok = c - g[j] <= f[i] + theta * eps;
+                let colmin = (0..xs.len())
+                    .map(|i2| sq(&xs.pos[i2], &ys.pos[j]) - f[i2])
+                    .fold(f64::INFINITY, f64::min);
+                let col_ok = c - f[i] <= colmin + theta * eps;
+                assert_eq!(
+                    cols.contains(&(j as u32)),
+                    row_ok || col_ok,
+                    "level {level} pair ({i},{j})"
+                );
+            }
+            assert_eq!(kern.f[i], f[i]);
+        }
+        // The transpose holds the same entries.
+        for j in 0..ys.len() {
+            for e in kern.col_ptr[j]..kern.col_ptr[j + 1] {
+                let i = kern.row[e] as usize;
+                let pos = (kern.row_ptr[i]..kern.row_ptr[i + 1])
+                    .find(|&p| kern.col[p] as usize == j)
+                    .unwrap();
+                assert_eq!(kern.k[pos], kern.kt[e]);
+            }
+        }
+    }
+}
+
+/// A local rebuild after some potentials moved keeps its promise against a dense scan: f is
+/// the exact row minimum (so K ≤ 1), and every pair with reduced cost ≤ (θ − 2τ)ε is kept.
+#[allow(clippy::needless_range_loop)]
+#[test]
+fn local_rebuild_keeps_every_pair_it_promises() {
+    let (a, b) = (pts(0.3, 900), pts(0.7, 900));
+    let grid = Grid::new(&a, &b);
+    let (hs, ht) = (Hierarchy::new(&a, &grid, 5), Hierarchy::new(&b, &grid, 5));
+    let level = hs.point_level();
+    let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
+    let (eps, theta, tau) = (1e-3, 8.0, 0.5);
+    // A c-concave g0 (the c-transform of a c-transform), as Sinkhorn's potentials nearly are:
+    // every column is some row's best, so moving one changes rows' minima.
+    let rough = potential(&ys.pos, 1.0);
+    let f_raw: Vec<f64> = (0..xs.len())
+        .map(|i| {
+            (0..ys.len())
+                .map(|j| sq(&xs.pos[i], &ys.pos[j]) - rough[j])
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    let g0: Vec<f64> = (0..ys.len())
+        .map(|j| {
+            (0..xs.len())
+                .map(|i| sq(&xs.pos[i], &ys.pos[j]) - f_raw[i])
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    let whole = build(&hs, &ht, level, &g0, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
+    // Every column moves a little (below τε); a patch of columns moves by up to ±12ε, and one
+    // column by 40ε (it becomes the best column of rows that never saw it).
+    let g: Vec<f64> = g0
+        .iter()
+        .zip(&ys.pos)
+        .enumerate()
+        .map(|(j, (&v, y))| {
+            let small = 0.4 * eps * ((j as f64 * 0.37).sin());
+            let patch = if (y[0] - 0.5).abs() < 0.15 && y[1] < 0.25 {
+                12.0 * eps * ((j as f64 * 1.3).sin())
+            } else {
+                0.0
+            };
+            let jump = if j == 17 { 40.0 * eps } else { 0.0 };
+            v + small + patch + jump
+        })
+        .collect();
+    let Some(Local::Built(kern, rows, cols)) = rebuild_local(
+        &hs,
+        &ht,
+        level,
+        &whole,
+        &g,
+        &whole.f,
+        &g0,
+        eps,
+        LocalLimits {
+            theta,
+            tau,
+            tau_whole: tau,
+            max_moved: xs.len(),
+            max_pairs: usize::MAX,
+        },
+        Wrap::Clamp,
+    ) else {
+        panic!("the local rebuild was refused");
+    };
+    assert!(
+        rows > 0 && cols > 0 && cols < ys.len() / 4,
+        "{rows} rows, {cols} cols"
+    );
+    for i in 0..xs.len() {
+        let f = (0..ys.len())
+            .map(|j| sq(&xs.pos[i], &ys.pos[j]) - g[j])
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(kern.f[i], f, "row {i}: f is the exact row minimum");
+        let kept = &kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
+        for j in 0..ys.len() {
+            let reduced = sq(&xs.pos[i], &ys.pos[j]) - f - g[j];
+            assert!(reduced >= -1e-12, "pair ({i},{j}) below its row minimum");
+            if reduced <= (theta - 2.0 * tau) * eps {
+                assert!(kept.contains(&(j as u32)), "pair ({i},{j}) at {reduced:e}");
+            }
+        }
+    }
+    // Entries and their transpose hold the values of the new potentials.
+    for j in 0..ys.len() {
+        for e in kern.col_ptr[j]..kern.col_ptr[j + 1] {
+            let i = kern.row[e] as usize;
+            let c = sq(&xs.pos[i], &ys.pos[j]);
+            let want = ((kern.f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32;
+            assert_eq!(kern.kt[e], want);
+        }
+    }
+}

@@ -1,0 +1,97 @@
+//! Potentials between stages: absorbing the scalings, hard c-transforms on a sparse support, the
+//! ε extrapolation of the entropic offset, and the soft c-transform onto a finer level.
+
+use super::hierarchy::Hierarchy;
+use super::kernel::Kernel;
+use crate::cost::sq;
+use crate::Wrap;
+use rayon::prelude::*;
+
+/// Potentials with the scalings absorbed: p + ε log(s / mass).
+pub(super) fn absorbed(p: &[f64], s: &[f64], mass: &[f64], eps: f64) -> Vec<f64> {
+    p.par_iter()
+        .zip(s)
+        .zip(mass)
+        .map(|((&p, &s), &m)| p + eps * (s / m).ln())
+        .collect()
+}
+
+/// The hard c-transform over a sparse support: for every row i of (`ptr`, `idx`),
+/// min over its entries j of |x_i − y_j|² − pot_j.
+pub(super) fn hard_transform<const D: usize>(
+    ptr: &[usize],
+    idx: &[u32],
+    x: &[[f64; D]],
+    y: &[[f64; D]],
+    pot: &[f64],
+    wrap: Wrap,
+) -> Vec<f64> {
+    (0..ptr.len() - 1)
+        .into_par_iter()
+        .map(|i| {
+            idx[ptr[i]..ptr[i + 1]]
+                .iter()
+                .map(|&j| sq(wrap, &x[i], &y[j as usize]) - pot[j as usize])
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect()
+}
+
+/// Potentials for a smaller ε from converged ones: an entropic potential is its hard c-transform
+/// counterpart plus an offset ε·L(x) whose shape (log densities and Jacobians) barely depends on ε,
+/// so the offset is scaled by ε_new/ε_old. Without this every ε stage starts with a smooth,
+/// long-wavelength potential error of a few ε, which Sinkhorn removes only in hundreds of
+/// iterations (measured with the other changes of this commit: the coarse stages at 50K points took
+/// 1.3–2.3 times fewer iterations, and the final stage 60 instead of 157).
+pub(super) fn shrink_offset(soft: &[f64], hard: &[f64], ratio: f64) -> Vec<f64> {
+    soft.iter()
+        .zip(hard)
+        .map(|(&s, &h)| {
+            if h.is_finite() {
+                h + ratio * (s - h)
+            } else {
+                s
+            }
+        })
+        .collect()
+}
+
+/// Target potential on level `to` from the source potential `f` on level `from`: the soft
+/// c-transform g(y) = −ε log Σ_I a_I exp((f_I − C(x_I, y))/ε) over the source cells the coarse
+/// kernel links to y's ancestor.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn extrapolate<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    from: usize,
+    to: usize,
+    kernel: &Kernel,
+    f: &[f64],
+    eps: f64,
+    wrap: Wrap,
+) -> Vec<f64> {
+    let ys = &ht.levels[to];
+    let (xs, a) = (&hs.levels[from].pos, &hs.levels[from].mass);
+    (0..ys.len())
+        .into_par_iter()
+        .map(|j| {
+            let mut anc = j;
+            for l in (from + 1..=to).rev() {
+                anc = ht.levels[l].parent[anc] as usize;
+            }
+            let rows = &kernel.row[kernel.col_ptr[anc]..kernel.col_ptr[anc + 1]];
+            let y = &ys.pos[j];
+            let mut m = f64::NEG_INFINITY;
+            for &i in rows {
+                let i = i as usize;
+                m = m.max(f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln());
+            }
+            let mut s = 0.0;
+            for &i in rows {
+                let i = i as usize;
+                s += ((f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln() - m) / eps).exp();
+            }
+            -(m + eps * s.ln())
+        })
+        .collect()
+}

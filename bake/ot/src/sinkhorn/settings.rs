@@ -1,0 +1,169 @@
+//! The Sinkhorn solver's settings (a plain config struct), their checks and fingerprint, and the
+//! defaults and tolerances the solver derives from them.
+
+use super::NAME;
+use crate::SolveError;
+
+/// How the map is read off the final plan.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapKind {
+    /// One-to-one: each source point goes to a distinct target sample (sparse auction refinement).
+    Assignment,
+    /// Barycentric projection of the entropic plan: smooth, slightly contracted (by about the blur).
+    Barycentric,
+}
+
+impl MapKind {
+    /// The manifest's word for it ("assignment" | "barycentric").
+    pub fn name(self) -> &'static str {
+        match self {
+            MapKind::Assignment => "assignment",
+            MapKind::Barycentric => "barycentric",
+        }
+    }
+}
+
+/// Settings of the Sinkhorn solver (manifest `[solver] kind = "sinkhorn"`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SinkhornSettings {
+    /// Final blur (ε = blur²) in coordinate units. `None`: `blur_spacing` × the mean point
+    /// spacing (V/n)^(1/d) of the denser cloud, V its occupied volume (`point_spacing`).
+    pub blur: Option<f64>,
+    /// Final blur as a multiple of the mean point spacing, when `blur` is not given. `None`:
+    /// `DEFAULT_BLUR_SPACING` for the dimension.
+    pub blur_spacing: Option<f64>,
+    /// Blur ratio between consecutive stages, in (0, 1).
+    pub scaling: f64,
+    /// Marginal error (L1, total mass 1) the final stage iterates to; earlier stages go to
+    /// `STAGE_TOLERANCE` × this. Earlier stages must be converged *more* tightly: a loosely
+    /// converged stage hands the next, smaller ε a potential whose error is low-frequency, which
+    /// Sinkhorn at small ε removes very slowly (measured: stage tolerance 1e-2 before a final 1e-3
+    /// stage left that stage stalled at 2e-3 after 2000 iterations). Default 1e-3. 3e-3 was 20%
+    /// faster and gave the same 5K cost ratios, but it lets the plan's rows err by up to ~600
+    /// points' worth of mass at 250K: the duck sampled with seed 0 then left the auction a row set
+    /// its support could not match, whose price war ran out of budget and fell back to the
+    /// barycentric map (five times slower). At 1e-3 every shape and seed measured matched with no
+    /// fallback (BENCHMARKS.md). With `map = "assignment"` the final stage goes to at most 1e-3
+    /// whatever this says (`ASSIGNMENT_TOLERANCE`).
+    pub tolerance: f64,
+    /// Iterations allowed per stage. Intermediate stages that hit it go on (the next stage starts
+    /// from their potentials, and the report counts them); the final stage must converge.
+    pub max_iterations: u32,
+    /// Truncation θ: pairs more than θ·ε above their row's and column's best are dropped (their
+    /// kernel entries are below e^−θ of the best). Default 8: on uniform/Gaussian → shape at 5K and
+    /// 50K points, θ = 8 and 12 gave the same matchings, and 8 keeps a third fewer pairs.
+    pub truncate: f64,
+    /// How the map is read off the plan.
+    pub map: MapKind,
+    /// `map = "assignment"` only: the auction's final ε as a fraction of the final Sinkhorn ε.
+    /// The matching is within n·ε_auction of the best the kernel's support allows; each division
+    /// by 4 is one more auction phase (about 10 bids per point). Default 1/4 (two phases): at 5K
+    /// points the cost is within 0.02% of exact and the L2-UVP 0.05%; 1/16 gives 0.002% and
+    /// 0.015%, 1 (one phase) 0.12% and 0.1% (BENCHMARKS.md).
+    pub auction_eps: f64,
+}
+
+impl Default for SinkhornSettings {
+    fn default() -> Self {
+        Self {
+            blur: None,
+            blur_spacing: None,
+            scaling: 0.5,
+            tolerance: 1e-3,
+            max_iterations: 2000,
+            truncate: 8.0,
+            map: MapKind::Assignment,
+            auction_eps: 0.25,
+        }
+    }
+}
+
+/// Revision of the solver's algorithm, part of every fingerprint (so of every map's cache key):
+/// bumped whenever the same settings give different maps, so that caches from an earlier otbake
+/// are rebaked rather than silently reused. 2: the auction on precomputed reduced costs and, in
+/// 3D, from ε/4 (`AUCTION_START`); loose mid-stage rebuilds.
+const REVISION: u32 = 2;
+
+impl SinkhornSettings {
+    pub(crate) fn fingerprint(&self) -> String {
+        format!(
+            "sinkhorn(rev={REVISION},blur={:?},blur_spacing={:?},scaling={:?},tolerance={:?},max_iterations={},truncate={:?},map={},auction_eps={:?})",
+            self.blur,
+            self.blur_spacing,
+            self.scaling,
+            self.tolerance,
+            self.max_iterations,
+            self.truncate,
+            self.map.name(),
+            self.auction_eps
+        )
+    }
+
+    pub(super) fn check(&self) -> Result<(), SolveError> {
+        let bad = |field: &'static str, reason: &str| {
+            Err(SolveError::InvalidSettings {
+                solver: NAME,
+                field,
+                reason: reason.to_string(),
+            })
+        };
+        if let Some(b) = self.blur {
+            if !(b.is_finite() && b > 0.0) {
+                return bad("blur", "must be a positive number (coordinate units)");
+            }
+        }
+        if !self.blur_spacing.is_none_or(|b| b.is_finite() && b > 0.0) {
+            return bad("blur_spacing", "must be a positive number");
+        }
+        if !(self.scaling > 0.0 && self.scaling < 1.0) {
+            return bad(
+                "scaling",
+                "must be in (0, 1); 0.5 halves the blur per stage",
+            );
+        }
+        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
+            return bad(
+                "tolerance",
+                "must be in (0, 1) (L1 marginal error, total mass 1)",
+            );
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", "must be at least 1");
+        }
+        if !(self.truncate.is_finite() && self.truncate >= 1.0) {
+            return bad(
+                "truncate",
+                "must be at least 1 (8 keeps entries above e^-8)",
+            );
+        }
+        if !(self.auction_eps > 0.0 && self.auction_eps <= 1.0) {
+            return bad(
+                "auction_eps",
+                "must be in (0, 1] (a fraction of the final Sinkhorn epsilon)",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Default final blur in point spacings, by dimension (index 1, 2, 3; 3 also for 4D). A kernel row
+/// keeps the points within about √θ·blur, so the pairs per point grow like blur_spacing^d: 1.5 in
+/// 2D keeps about 60 pairs per point at θ = 8, and 1.0 in 3D about 100 (1.5 in 3D kept 315, and the
+/// bake of a 50K mesh volume took 4.7 times as long).
+pub const DEFAULT_BLUR_SPACING: [f64; 4] = [1.5, 1.5, 1.5, 1.0];
+
+/// Tolerance of the stages before the last, as a fraction of `tolerance`. The marginal error of a
+/// stage bounds its potentials' error poorly at long wavelengths, and the next, halved ε sees that
+/// error doubled in units of ε and removes it only slowly (iterations per stage grew 93, 230, 516,
+/// 536 at 50K points with a factor of 1). Coarse stages are cheap, so they go further: 3e-4 before a
+/// final 1e-3 (measured at 50K: the final stage then needs 60 iterations instead of 536; and 1e-4
+/// before it doubled the 250K iterations without shortening the final stage).
+pub(super) const STAGE_TOLERANCE: f64 = 0.3;
+
+/// Loosest final marginal error the auction of `map = "assignment"` starts from, whatever
+/// `tolerance` says (so with that map, a looser tolerance only loosens the earlier stages). The
+/// auction starts from the plan's target potential, and a looser plan leaves prices far from the
+/// matching's. Gaussian → Gaussian at 50K with blur_spacing 0.5: tolerance 1e-2 ended Sinkhorn at
+/// 6.9e-3 and spent nearly all of its time in bids (five times more before the auction read
+/// precomputed costs); clamped to 3e-3 the solve took a third of that time, at 1e-3 a twelfth.
+pub(super) const ASSIGNMENT_TOLERANCE: f64 = 1e-3;
