@@ -60,9 +60,9 @@ impl Locator<'_> {
     pub(super) fn toml(&self, e: toml::de::Error) -> ManifestError {
         let msg = e.message().trim().to_string();
         let hint = if msg.contains("unknown field") {
-            " (remove or correct the key; see the manifest reference in README.md)"
+            " (remove or correct the key; see the manifest reference, manifests/reference.toml)"
         } else if msg.contains("missing field") {
-            " (add it; see the manifest reference in README.md)"
+            " (add it; see the manifest reference, manifests/reference.toml)"
         } else {
             ""
         };

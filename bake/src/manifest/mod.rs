@@ -4,53 +4,12 @@
 //! falls back to a default), then [`Manifest::load`] validates cross-field rules and resolves paths
 //! relative to the manifest file. Every error carries `file:line:column` and a fix.
 //!
-//! ```toml
-//! [output]
-//! dir = "out/shapes"            # relative to this file
+//! Every section and key, with its default and range, is in `manifests/reference.toml`, a
+//! manifest that a test parses and bakes; it is the one manifest reference.
 //!
-//! [proxy]
-//! kind = "gaussian"             # gaussian | uniform | spiral | input
-//! sigma = 0.1667                # gaussian: std. dev. as a fraction of the side
-//! samples = 250000              # points per input (and in the proxy)
-//! seed = 0
-//!
-//! [solver]
-//! kind = "sinkhorn"             # sinkhorn | exact | sliced
-//! # sinkhorn (defaults shown): final blur = blur_spacing x the mean point spacing unless `blur`
-//! # (a length in the unit cube) is given; map = "assignment" | "barycentric"
-//! # blur_spacing = 1.5 (1.0 in 3D), scaling = 0.5, tolerance = 1e-3, max_iterations = 2000, truncate = 8.0,
-//! # auction_eps = 0.25
-//! # exact: max_n = 10000        sliced: iterations = 200, step = 0.3, seed = 0,
-//! # map = "flow" | "assignment" (the flow's endpoints snapped one to one onto the samples)
-//!
-//! [[input]]
-//! name = "duck"
-//! path = "data/duck.png"        # relative to this file
-//! density = "inverted"          # luminance (default) | inverted | alpha
-//! wrap = "periodic"             # clamp (default) | periodic: a tileable image on the torus; every
-//!                               # input must agree, and the proxy must be uniform or an input
-//!
-//! [brdf]                        # optional; for .binary (MERL) and .brdf (Cornell) inputs
-//! resolution = 180              # grid cells per axis over (θi, θo, φd) (default 180)
-//!
-//! [storage]                     # optional: what every map archive stores, how precisely
-//! preset = "compact"            # full (default: all f32, spacings) | compact (u8/u16/u8, node
-//!                               # colors kept, no spacings)
-//! positions = "u8"              # f32 | u16 | u8 (on the box of each leaf's parent)
-//! node_boxes = "u16"            # f32 | u16 (on the map's bounds, rounded outward)
-//! colors = "u8"                 # f32 | u16 | u8 | none (density-only scenes)
-//! node_colors = true            # node color sums, for range queries of color (LOD)
-//! spacings = true               # per-point spacings, for density-adaptive queries (BRDF blends
-//!                               # evaluate with them by default); 1.1 bytes per point
-//!
-//! [mesh]                        # optional; for .obj inputs (see volume::voxelize)
-//! resolution = 128              # grid cells per axis (default 128)
-//! fit = "each"                  # each (own bounding box) | common (one box for all meshes)
-//! margin = 0.05                 # empty border on every side of the cube (default 0.05)
-//!
-//! [volume]                      # optional; for .vol inputs (see volume::vol)
-//! fit = "stretch"               # stretch (fill the cube) | pad (pad cubic cells to a cube)
-//! ```
+//! Architecture Invariant: the raw types know nothing of validation, and each section's
+//! validator sees only its own raw section and what earlier sections produced (the proxy sees the
+//! inputs, the solver whether they are periodic): sections are validated in one fixed order.
 
 mod error;
 mod inputs;
