@@ -27,7 +27,7 @@ const PHASE_BUDGET_PER_ROW: u64 = 64;
 /// minimum reduced cost are then freed, and JV's ε = 0 row reduction (two capped passes) and its
 /// Dijkstra-like shortest augmenting paths finish exactly, with short paths because the duals are
 /// already nearly optimal. The auction is only a warm start: whatever it leaves, the shortest path
-/// phase completes an optimal assignment, certified afterwards by [`duality_gap`].
+/// phase completes an optimal assignment, certified afterwards by [`super::duality_gap`].
 ///
 /// Never loops forever on finite costs: every row reduction pass has a processing budget and each
 /// shortest-path search ends within n FIND/SCAN rounds.

@@ -8,7 +8,7 @@
 //! 1.35 GB at n = 13 000); each cost is a few flops, about as cheap as loading it from memory.
 //!
 //! Phases: column reduction, reduction transfer, augmenting row reduction (run with ε-scaling, i.e.
-//! as an auction, before JV's own two ε = 0 passes: see [`lapjv`] for why), then one Dijkstra-like
+//! as an auction, before JV's own two ε = 0 passes: see [`lapjv()`] for why), then one Dijkstra-like
 //! shortest augmenting path per remaining free row. Before the exact passes, the column duals `v`
 //! are made such that every assigned row's column minimizes its reduced cost `c_ij − v_j`, which
 //! the shortest paths preserve; optimality is then checked, not assumed: the reported residual is
