@@ -4,11 +4,12 @@ mod cli;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use cli::scene::{input_names, Open, Scene, Show};
 use otbake::manifest::Manifest;
-use otbake::pipeline::bake::{bake, bake_one, Action, BakeOptions, Status};
+use otbake::pipeline::bake::{bake_one, Action};
 use otbake::render::imageio::write_image;
-use otbake::render::{render, render_grid, Archives, Method, RenderSettings};
-use std::path::{Path, PathBuf};
+use otbake::render::{render, render_grid, Method, RenderSettings};
+use std::path::PathBuf;
 
 #[derive(Parser)]
 #[command(
@@ -401,72 +402,6 @@ fn main() {
     }
 }
 
-/// How a bake shows itself.
-#[derive(Clone, Copy, Default)]
-struct Show {
-    /// One line per product on stderr (and spinners on a terminal).
-    lines: bool,
-    /// The JSON report on stdout.
-    json: bool,
-}
-
-fn load_and_bake(
-    path: &Path,
-    force: bool,
-    cache_dir: Option<&Path>,
-    show: Show,
-) -> Result<Manifest> {
-    let m = Manifest::load(path)?;
-    let progress = cli::progress::Progress::new(show.lines);
-    let on_event = |e: &otbake::pipeline::bake::Event<'_>| progress.event(e);
-    let report = bake(
-        &m,
-        &BakeOptions {
-            force,
-            store: cache_dir,
-            on_event: Some(&on_event),
-        },
-    )?;
-    progress.finish();
-    if show.json {
-        println!("{}", report.to_json());
-    }
-    let failed: Vec<_> = report
-        .products
-        .iter()
-        .filter(|p| p.status == Status::Failed)
-        .collect();
-    // Name an input's failure first: a proxy skipped because every input failed is a consequence.
-    if let Some(first) = failed.iter().find(|p| p.name != "proxy").or(failed.first()) {
-        bail!(
-            "{} of {} products failed; first: {}: {}",
-            failed.len(),
-            report.products.len(),
-            first.name,
-            first.detail
-        );
-    }
-    Ok(m)
-}
-
-/// One weight per input, or an error naming the inputs.
-fn check_weight_count(m: &Manifest, manifest: &Path, weights: &[f32]) -> Result<()> {
-    if weights.len() != m.inputs.len() {
-        bail!(
-            "--weights has {} values but {} has {} inputs ({}): give one weight per input",
-            weights.len(),
-            manifest.display(),
-            m.inputs.len(),
-            m.inputs
-                .iter()
-                .map(|i| i.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    Ok(())
-}
-
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Bake {
@@ -475,8 +410,13 @@ fn run(cli: Cli) -> Result<()> {
             json,
             cache_dir,
         } => {
+            let open = Open {
+                force,
+                cache_dir: cache_dir.as_deref(),
+                show: Show { lines: !json, json },
+            };
             for m in &manifests {
-                load_and_bake(m, force, cache_dir.as_deref(), Show { lines: !json, json })?;
+                Scene::bake(m, &open)?;
             }
         }
         Command::BakeOne {
@@ -535,23 +475,9 @@ fn run(cli: Cli) -> Result<()> {
             output,
         } => {
             let settings = image.settings()?;
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
-            let maps = archives.maps()?;
-            if weights.len() != maps.len() {
-                bail!(
-                    "--weights has {} values but {} has {} inputs ({}): give one weight per input",
-                    weights.len(),
-                    manifest.display(),
-                    maps.len(),
-                    m.inputs
-                        .iter()
-                        .map(|i| i.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
-            }
-            let img = render(archives.proxy()?, &maps, &weights, &settings)?;
+            let scene = Scene::open(&manifest, Some(&weights))?;
+            let maps = scene.maps()?;
+            let img = render(scene.proxy()?, &maps, &weights, &settings)?;
             write_image(&output, &img)?;
         }
         Command::Grid {
@@ -561,9 +487,9 @@ fn run(cli: Cli) -> Result<()> {
             output,
         } => {
             let settings = image.settings()?;
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
-            let img = render_grid(&archives, steps, &settings)?;
+            let scene = Scene::open(&manifest, None)?;
+            let archives = &scene.archives;
+            let img = render_grid(archives, steps, &settings)?;
             write_image(&output, &img)?;
         }
         Command::Texture {
@@ -577,8 +503,8 @@ fn run(cli: Cli) -> Result<()> {
             if !(sigma.is_finite() && sigma > 0.0) {
                 bail!("--sigma {sigma}: use a positive number of pixels");
             }
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
+            let scene = Scene::open(&manifest, None)?;
+            let archives = &scene.archives;
             let maps = archives.maps()?;
             if let otbake::render::texture::WeightField::Constant(w) = &weights {
                 if w.len() != maps.len() {
@@ -617,16 +543,12 @@ fn run(cli: Cli) -> Result<()> {
             input,
             output,
         } => {
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
+            let m = Scene::bake(&manifest, &Open::default())?;
             if m.input_index(&input).is_none() {
                 bail!(
                     "--input {input:?} is not an input of {}: use one of {}",
                     manifest.display(),
-                    m.inputs
-                        .iter()
-                        .map(|i| i.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    input_names(&m)
                 );
             }
             let bytes = otbake::render::points::points_npy(&m, &input)?;
@@ -645,11 +567,9 @@ fn run(cli: Cli) -> Result<()> {
             if !(0.0..90.0).contains(&theta_i) || !(1..=8192).contains(&size) {
                 bail!("--theta-i must be in [0, 90) degrees and --size 1 to 8192");
             }
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
-            let maps = archives.maps()?;
-            check_weight_count(&m, &manifest, &weights)?;
-            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
+            let scene = Scene::open(&manifest, Some(&weights))?;
+            let maps = scene.maps()?;
+            let b = brdf_blend(scene.proxy()?, &maps, sigma, scale)?;
             let img =
                 otbake::render::brdf::slice(&b, &weights, theta_i.to_radians(), size, exposure)?;
             write_image(&output, &img)?;
@@ -665,10 +585,10 @@ fn run(cli: Cli) -> Result<()> {
             if !(2..=4096).contains(&size) {
                 bail!("--size {size}: use 2 to 4096 pixels");
             }
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
+            let scene = Scene::open(&manifest, None)?;
+            let archives = &scene.archives;
             let maps = archives.maps()?;
-            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
+            let b = brdf_blend(scene.proxy()?, &maps, sigma, scale)?;
             let img = otbake::render::brdf::spheres(&b, steps, size, &Default::default())
                 .map_err(|e| anyhow::anyhow!("{e}"))?;
             write_image(&output, &img)?;
@@ -680,11 +600,9 @@ fn run(cli: Cli) -> Result<()> {
             scale,
             output,
         } => {
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
-            let maps = archives.maps()?;
-            check_weight_count(&m, &manifest, &weights)?;
-            let b = brdf_blend(archives.proxy()?, &maps, sigma, scale)?;
+            let scene = Scene::open(&manifest, Some(&weights))?;
+            let maps = scene.maps()?;
+            let b = brdf_blend(scene.proxy()?, &maps, sigma, scale)?;
             otbake::render::brdf::export_merl(&b, &weights)?.write(&output)?;
         }
         Command::Volume {
@@ -694,11 +612,9 @@ fn run(cli: Cli) -> Result<()> {
             sigma,
             output,
         } => {
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            check_weight_count(&m, &manifest, &weights)?;
-            let archives = Archives::load(&m)?;
-            let maps = archives.maps()?;
-            otbake::render::volume::export(archives.proxy()?, &maps, &weights, res, sigma)?
+            let scene = Scene::open(&manifest, Some(&weights))?;
+            let maps = scene.maps()?;
+            otbake::render::volume::export(scene.proxy()?, &maps, &weights, res, sigma)?
                 .write(&output)?;
         }
         Command::Render {
@@ -721,16 +637,15 @@ fn run(cli: Cli) -> Result<()> {
                 extinction,
                 step,
             };
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            let archives = Archives::load(&m)?;
+            let scene = Scene::open(&manifest, weights.as_deref())?;
+            let archives = &scene.archives;
             let img = match (weights, triangle) {
                 (Some(w), _) => {
-                    check_weight_count(&m, &manifest, &w)?;
                     let maps = archives.maps()?;
                     otbake::render::volume::render(archives.proxy()?, &maps, &w, &settings)?
                 }
                 (None, Some(steps)) => {
-                    otbake::render::volume::render_triangle(&archives, steps, &settings)?
+                    otbake::render::volume::render_triangle(archives, steps, &settings)?
                 }
                 (None, None) => bail!("give --weights a,b,.. or --triangle STEPS"),
             };
@@ -746,10 +661,8 @@ fn run(cli: Cli) -> Result<()> {
             scale,
             output,
         } => {
-            let m = load_and_bake(&manifest, false, None, Show::default())?;
-            check_weight_count(&m, &manifest, &weights)?;
-            let archives = Archives::load(&m)?;
-            let maps = archives.maps()?;
+            let scene = Scene::open(&manifest, Some(&weights))?;
+            let maps = scene.maps()?;
             let settings = otbake::render::volume::SliceSettings {
                 axis,
                 at,
@@ -757,7 +670,7 @@ fn run(cli: Cli) -> Result<()> {
                 sigma,
                 scale,
             };
-            let img = otbake::render::volume::slice(archives.proxy()?, &maps, &weights, &settings)?;
+            let img = otbake::render::volume::slice(scene.proxy()?, &maps, &weights, &settings)?;
             write_image(&output, &img)?;
         }
         Command::Inspect { archive } => {
