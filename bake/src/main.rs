@@ -2,11 +2,9 @@
 
 mod cli;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
-use cli::scene::{input_names, Open, Scene, Show};
-use otbake::manifest::Manifest;
-use otbake::pipeline::bake::{bake_one, Action};
+use cli::scene::{input_names, Open, Scene};
 use otbake::render::imageio::write_image;
 use otbake::render::{render, render_grid, Method, RenderSettings};
 use std::path::PathBuf;
@@ -53,62 +51,16 @@ impl ImageArgs {
 #[derive(Subcommand)]
 enum Command {
     /// Bake the proxy and every map a manifest declares (only what is not current).
-    Bake {
-        /// Manifest files.
-        #[arg(required = true)]
-        manifests: Vec<PathBuf>,
-        /// Rebuild even when archives are current (bypasses the store).
-        #[arg(long)]
-        force: bool,
-        /// Print the report as JSON on stdout (one object per manifest, one per line).
-        #[arg(long)]
-        json: bool,
-        /// Store directory shared between bakes (default: OUTPUT_DIR/.otbake).
-        #[arg(long, env = "OTBAKE_CACHE_DIR")]
-        cache_dir: Option<PathBuf>,
-    },
+    Bake(cli::bake::BakeArgs),
     /// Hermetic single-product bake for build systems: reads only the manifest, the product's inputs
     /// and the proxy archive; writes only OUTPUT (untouched if already current).
-    BakeOne {
-        /// Manifest file.
-        manifest: PathBuf,
-        /// `proxy`, or the name of an input.
-        #[arg(long)]
-        product: String,
-        /// The proxy archive (required for maps).
-        #[arg(long)]
-        proxy: Option<PathBuf>,
-        /// Output archive.
-        #[arg(short, long)]
-        output: PathBuf,
-    },
+    BakeOne(cli::bake::BakeOneArgs),
     /// Print the whole bake as a build graph of `bake-one` actions (Ninja file or JSON).
-    Plan {
-        /// Manifest file.
-        manifest: PathBuf,
-        /// Output format.
-        #[arg(long, value_enum, default_value_t = otbake::pipeline::plan::Format::Ninja)]
-        format: otbake::pipeline::plan::Format,
-    },
+    Plan(cli::bake::PlanArgs),
     /// Compress an archive with zstd for storage or transfer (the runtime reads uncompressed bytes).
-    Pack {
-        /// Archive (.otb).
-        archive: PathBuf,
-        /// Output (default: ARCHIVE.zst).
-        #[arg(short, long)]
-        output: Option<PathBuf>,
-        /// zstd level (1-22).
-        #[arg(long, default_value_t = 19)]
-        level: i32,
-    },
+    Pack(cli::bake::PackArgs),
     /// Decompress a packed archive and validate it.
-    Unpack {
-        /// Packed archive (.otb.zst).
-        packed: PathBuf,
-        /// Output archive.
-        #[arg(short, long)]
-        output: PathBuf,
-    },
+    Unpack(cli::bake::UnpackArgs),
     /// Render one blend of a manifest's inputs as an image (bakes what is missing first).
     Blend {
         /// Manifest file.
@@ -340,34 +292,11 @@ enum Command {
         output: PathBuf,
     },
     /// Describe an archive: header, sizes, keys, validation.
-    Inspect {
-        /// Archive file (.otb).
-        archive: PathBuf,
-    },
+    Inspect(cli::bake::InspectArgs),
     /// Benchmark the solvers (speed against accuracy) on standard cases: Gaussian → Gaussian
     /// (closed form), Gaussian → each shape, uniform → three blobs. Writes bench.csv, bench.png
     /// (time against L2-UVP) and summary.md into --out.
-    Bench {
-        /// Small n and a reduced sweep (seconds; for CI and tests).
-        #[arg(long)]
-        quick: bool,
-        /// Sizes for every case, e.g. 1000,5000 (default: 1000,5000, plus 50000,250000 for
-        /// gaussian; exact runs only up to 10000).
-        #[arg(long, value_delimiter = ',')]
-        n: Option<Vec<usize>>,
-        /// Cases: gaussian, blobs, shapes (all shapes) or shape names, e.g. gaussian,duck.
-        #[arg(long, value_delimiter = ',')]
-        cases: Option<Vec<String>>,
-        /// Solvers, e.g. exact,sinkhorn (default: all).
-        #[arg(long, value_delimiter = ',', value_enum)]
-        solvers: Option<Vec<otbake::bench::SolverKind>>,
-        /// Directory of the shape PNGs.
-        #[arg(long, default_value = "../shared/data/shapes")]
-        shapes: PathBuf,
-        /// Output directory.
-        #[arg(long, default_value = "out/bench")]
-        out: PathBuf,
-    },
+    Bench(cli::bench::BenchArgs),
 }
 
 fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
@@ -404,70 +333,11 @@ fn main() {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Bake {
-            manifests,
-            force,
-            json,
-            cache_dir,
-        } => {
-            let open = Open {
-                force,
-                cache_dir: cache_dir.as_deref(),
-                show: Show { lines: !json, json },
-            };
-            for m in &manifests {
-                Scene::bake(m, &open)?;
-            }
-        }
-        Command::BakeOne {
-            manifest,
-            product,
-            proxy,
-            output,
-        } => {
-            let m = Manifest::load(&manifest)?;
-            let action = if product == "proxy" {
-                Action::Proxy
-            } else {
-                let Some(proxy) = proxy.as_deref() else {
-                    bail!(
-                        "--product {product:?} is a map: give the proxy archive with --proxy PATH"
-                    );
-                };
-                Action::Map {
-                    name: &product,
-                    proxy,
-                }
-            };
-            bake_one(&m, &action, &output)?;
-        }
-        Command::Plan { manifest, format } => {
-            let m = Manifest::load(&manifest)?;
-            let exe = std::env::current_exe().context("cannot locate the otbake executable")?;
-            print!("{}", otbake::pipeline::plan::render(&m, &exe, format)?);
-        }
-        Command::Pack {
-            archive,
-            output,
-            level,
-        } => {
-            let bytes = std::fs::read(&archive)
-                .with_context(|| format!("cannot read {}", archive.display()))?;
-            otbake::pipeline::inspect::validate(&bytes)
-                .with_context(|| format!("{} is not a valid archive", archive.display()))?;
-            let packed = zstd::bulk::compress(&bytes, level).context("zstd compression failed")?;
-            let out = output.unwrap_or_else(|| PathBuf::from(format!("{}.zst", archive.display())));
-            otbake::fsio::write_atomic(&out, &packed)?;
-        }
-        Command::Unpack { packed, output } => {
-            let bytes = std::fs::read(&packed)
-                .with_context(|| format!("cannot read {}", packed.display()))?;
-            let raw = zstd::stream::decode_all(&bytes[..])
-                .with_context(|| format!("{} is not zstd data", packed.display()))?;
-            otbake::pipeline::inspect::validate(&raw)
-                .with_context(|| format!("{} does not hold a valid archive", packed.display()))?;
-            otbake::fsio::write_atomic(&output, &raw)?;
-        }
+        Command::Bake(args) => cli::bake::bake(args)?,
+        Command::BakeOne(args) => cli::bake::bake_one(args)?,
+        Command::Plan(args) => cli::bake::plan(args)?,
+        Command::Pack(args) => cli::bake::pack(args)?,
+        Command::Unpack(args) => cli::bake::unpack(args)?,
         Command::Blend {
             manifest,
             weights,
@@ -673,42 +543,8 @@ fn run(cli: Cli) -> Result<()> {
             let img = otbake::render::volume::slice(scene.proxy()?, &maps, &weights, &settings)?;
             write_image(&output, &img)?;
         }
-        Command::Inspect { archive } => {
-            let bytes = std::fs::read(&archive)
-                .with_context(|| format!("cannot read {}", archive.display()))?;
-            print!("{}", otbake::pipeline::inspect::describe(&bytes));
-            otbake::pipeline::inspect::validate(&bytes)
-                .with_context(|| format!("{} is not a valid archive", archive.display()))?;
-        }
-        Command::Bench {
-            quick,
-            n,
-            cases,
-            solvers,
-            shapes,
-            out,
-        } => {
-            let options = otbake::bench::BenchOptions {
-                quick,
-                ns: n,
-                cases,
-                solvers,
-                shapes_dir: shapes,
-                out,
-            };
-            let mut progress = otbake::bench::TerminalProgress::new();
-            let result = otbake::bench::run(&options, &mut |e| progress.event(e));
-            progress.finish();
-            let report = result?;
-            let failed = report.rows.iter().filter(|r| !r.converged).count();
-            eprintln!(
-                "{} runs ({failed} not converged or failed): {}, {}, {}",
-                report.rows.len(),
-                report.csv.display(),
-                report.chart.display(),
-                report.summary.display()
-            );
-        }
+        Command::Inspect(args) => cli::bake::inspect(args)?,
+        Command::Bench(args) => cli::bench::bench(args)?,
     }
     Ok(())
 }
