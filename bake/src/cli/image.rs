@@ -131,18 +131,19 @@ pub struct TextureArgs {
 /// `otbake texture`: weights that vary per pixel, by point or (with `--lod`) range queries.
 pub fn texture(args: TextureArgs) -> Result<()> {
     let TextureArgs {
+        manifest,
         weights,
         size: (width, height),
         sigma,
         lod,
-        ..
-    } = &args;
-    if !(sigma.is_finite() && *sigma > 0.0) {
+        output,
+    } = args;
+    if !(sigma.is_finite() && sigma > 0.0) {
         bail!("--sigma {sigma}: use a positive number of pixels");
     }
-    let scene = Scene::open(&args.manifest, None)?;
+    let scene = Scene::open(&manifest, None)?;
     let maps = scene.maps()?;
-    if let WeightField::Constant(w) = weights {
+    if let WeightField::Constant(w) = &weights {
         if w.len() != maps.len() {
             bail!(
                 "--weights has {} values but the manifest has {} inputs: give one weight per input",
@@ -151,14 +152,14 @@ pub fn texture(args: TextureArgs) -> Result<()> {
             );
         }
     }
-    let img = match *lod {
+    let img = match lod {
         Some(r) if !(r.is_finite() && r > 0.0) => {
             bail!("--lod {r}: use a positive number of tiles")
         }
-        Some(r) => render_lod(scene.proxy()?, &maps, weights, *width, *height, r)?,
-        None => render_texture(scene.proxy()?, &maps, weights, *width, *height, *sigma)?,
+        Some(r) => render_lod(scene.proxy()?, &maps, &weights, width, height, r)?,
+        None => render_texture(scene.proxy()?, &maps, &weights, width, height, sigma)?,
     };
-    write_image(&args.output, &img)?;
+    write_image(&output, &img)?;
     Ok(())
 }
 
