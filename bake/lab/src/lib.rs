@@ -35,5 +35,6 @@
 
 #![warn(missing_docs)]
 
+pub mod bench;
 pub mod seam;
 pub mod timing;
