@@ -1,7 +1,7 @@
 //! Sizes and errors of a baked manifest's maps under each storage (the figures of BENCHMARKS.md).
 //!
 //! ```sh
-//! cargo run --release --example storage_report -- manifests/onyx-rock-1m.toml
+//! cargo run --release -p otbake-lab --example storage_report -- manifests/onyx-rock-1m.toml
 //! ```
 //! Bakes the manifest (which must store in full: it is the reference) if needed, then re-encodes
 //! every map under each storage with the encoder the baker uses (`encode_map_content`, so sizes are
@@ -18,9 +18,9 @@ use otbake::render::Archives;
 use otbake_formats::storage::{Precision, Storage};
 use otbake_formats::tree;
 use otbake_formats::write::{encode_map_content, MapContent};
+use otbake_lab::timing::{self, Clock};
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region};
 use rkyv::util::AlignedVec;
-use std::time::Instant;
 
 /// A map's content in full precision.
 struct Content {
@@ -144,9 +144,9 @@ fn main() -> anyhow::Result<()> {
         m.storage == Storage::FULL,
         "{path}: the reference must be stored in full (remove its [storage] section)"
     );
-    let t = Instant::now();
-    bake(&m, &BakeOptions::default())?;
-    eprintln!("bake check/bake: {:.1} s", t.elapsed().as_secs_f64());
+    let (baked, seconds) = timing::wall(|| bake(&m, &BakeOptions::default()));
+    baked?;
+    eprintln!("bake check/bake: {seconds:.1} s");
     let archives = Archives::load(&m)?;
     let proxy: Proxy<'_> = archives.proxy()?;
     let full_maps = archives.maps()?;
@@ -246,19 +246,20 @@ fn main() -> anyhow::Result<()> {
         let mean = sum / (k as f64 * n as f64 * dim as f64);
         let blend = Blend::new(archives.proxy()?, &maps)?;
         let mut bufs = buffers(&blend);
-        let mut times = Vec::new();
-        for _ in 0..5 {
-            let t = Instant::now();
+        let prepare_times = timing::time(5, Clock::Thread, || {
             let _ = prepare(&blend, &w, &mut bufs);
-            times.push(t.elapsed().as_secs_f64());
-        }
-        times.sort_by(f64::total_cmp);
-        let t = Instant::now();
+            Ok::<(), std::convert::Infallible>(())
+        });
+        let Ok(prepare_times) = prepare_times;
         let mut sink = 0.0f32;
-        for p in &probes {
-            sink += blend.point(&w, p, Kernel { sigma })?.density;
-        }
-        let per_point = t.elapsed().as_secs_f64() / probes.len() as f64;
+        let (points, seconds) = timing::wall(|| -> anyhow::Result<()> {
+            for p in &probes {
+                sink += blend.point(&w, p, Kernel { sigma })?.density;
+            }
+            Ok(())
+        });
+        points?;
+        let per_point = seconds / probes.len() as f64;
         std::hint::black_box(sink);
         let prep = prepare(&blend, &w, &mut bufs);
         let g = grid(&prep);
@@ -303,7 +304,7 @@ fn main() -> anyhow::Result<()> {
             dmean,
             dmax / max_density,
             dmean / mean_density,
-            times[times.len() / 2] * 1e3,
+            prepare_times.median() * 1e3,
             per_point * 1e6,
         );
     }

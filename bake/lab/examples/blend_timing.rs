@@ -1,7 +1,7 @@
 //! Times 256² renders of a baked manifest through the runtime: point query per pixel vs one splat.
 //!
 //! ```sh
-//! cargo run --release --example blend_timing -- manifests/shapes.toml [REPEATS]
+//! cargo run --release -p otbake-lab --example blend_timing -- manifests/shapes.toml [REPEATS]
 //! ```
 //! Bakes what is missing first. Prints the median and fastest wall time of each method over REPEATS
 //! runs (default 20) and the CPU time of all threads per render, single-threaded and with all
@@ -14,47 +14,8 @@
 use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::{render, Archives, Method, RenderSettings};
+use otbake_lab::timing::{self, Clock};
 use otbake_runtime::{Blend, Kernel, PointValue, PreparedBuffers, Region};
-use std::time::Instant;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// CPU time this thread has run, in seconds (Linux `schedstat`; wall-clock medians on a loaded
-/// machine include time other processes held the core, this does not). `None` elsewhere.
-fn thread_cpu() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    Some(s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9)
-}
-
-/// CPU time all threads of this process have run, in seconds (Linux `schedstat` of every task);
-/// `None` elsewhere. Rayon's workers are alive for the whole run, so differences are the renders'.
-fn process_cpu() -> Option<f64> {
-    let mut total = 0.0;
-    for task in std::fs::read_dir("/proc/self/task").ok()? {
-        let s = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
-        total += s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9;
-    }
-    Some(total)
-}
-
-/// Median wall-clock and (if available) mean CPU seconds of `repeats` runs of `f` (the CPU clock
-/// advances in scheduler ticks, so only a total over all runs is meaningful).
-fn time(repeats: usize, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<(f64, f64)> {
-    let mut wall = Vec::new();
-    let c = thread_cpu();
-    for _ in 0..repeats {
-        let t = Instant::now();
-        f()?;
-        wall.push(t.elapsed().as_secs_f64());
-    }
-    let cpu = thread_cpu()
-        .zip(c)
-        .map_or(f64::NAN, |(b, a)| (b - a) / repeats as f64);
-    Ok((median(wall), cpu))
-}
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -64,12 +25,10 @@ fn main() -> anyhow::Result<()> {
         .unwrap_or("manifests/shapes.toml");
     let repeats: usize = args.get(2).map(|r| r.parse()).transpose()?.unwrap_or(20);
     let m = Manifest::load(std::path::Path::new(path))?;
-    let t = Instant::now();
-    let report = bake(&m, &BakeOptions::default())?;
+    let (report, seconds) = timing::wall(|| bake(&m, &BakeOptions::default()));
     eprintln!(
-        "bake check/bake: {:.2} s ({} products)",
-        t.elapsed().as_secs_f64(),
-        report.products.len()
+        "bake check/bake: {seconds:.2} s ({} products)",
+        report?.products.len()
     );
     let archives = Archives::load(&m)?;
     let maps = archives.maps()?;
@@ -94,21 +53,14 @@ fn main() -> anyhow::Result<()> {
             };
             // One render first: the pool's threads and the per-thread buffers exist before timing.
             pool.install(|| render(proxy, &maps, &weights, &s))?;
-            let cpu = process_cpu();
-            let times = pool.install(|| -> anyhow::Result<Vec<f64>> {
-                (0..repeats)
-                    .map(|_| {
-                        let t = Instant::now();
-                        render(proxy, &maps, &weights, &s)?;
-                        Ok(t.elapsed().as_secs_f64())
-                    })
-                    .collect()
+            // The CPU time of every thread: the pool's workers do the render.
+            let t = pool.install(|| {
+                timing::time(repeats, Clock::Process, || {
+                    render(proxy, &maps, &weights, &s)?;
+                    anyhow::Ok(())
+                })
             })?;
-            let cpu = process_cpu()
-                .zip(cpu)
-                .map_or(f64::NAN, |(b, a)| (b - a) / repeats as f64);
-            let fastest = times.iter().copied().fold(f64::INFINITY, f64::min);
-            let med = median(times);
+            let (med, fastest, cpu) = (t.median(), t.min(), t.cpu);
             println!(
                 "{threads} thread(s)  {method:?}: median {:.2} ms, fastest {:.2} ms, CPU (all threads) {:.2} ms per render over {repeats} runs",
                 med * 1e3,
@@ -127,7 +79,12 @@ fn main() -> anyhow::Result<()> {
         vec![0.0f32; sizes.node_boxes],
         vec![0.0f32; sizes.node_colors],
     ];
-    let prepare = time(repeats, || {
+    // Median wall and mean CPU seconds of this thread per call.
+    let time = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<(f64, f64)> {
+        let t = timing::time(repeats, Clock::Thread, f)?;
+        Ok((t.median(), t.cpu))
+    };
+    let prepare = time(&mut || {
         let [p, c, b, nc] = &mut buffers;
         blend.prepare(
             &weights,
@@ -141,9 +98,7 @@ fn main() -> anyhow::Result<()> {
         Ok(())
     })?;
     // Its two halves on two threads (what the renders do); wall time only.
-    let mut wall = Vec::new();
-    for _ in 0..repeats {
-        let t = Instant::now();
+    let (prepare_joined, _) = time(&mut || {
         let [p, c, b, nc] = &mut buffers;
         blend.prepare_with(
             &weights,
@@ -157,9 +112,8 @@ fn main() -> anyhow::Result<()> {
                 rayon::join(geometry, color);
             },
         )?;
-        wall.push(t.elapsed().as_secs_f64());
-    }
-    let prepare_joined = median(wall);
+        Ok(())
+    })?;
     let [p, c, b, nc] = &mut buffers;
     let prep = blend.prepare(
         &weights,
@@ -175,20 +129,20 @@ fn main() -> anyhow::Result<()> {
     let mut values = vec![PointValue::default(); 256 * 256];
     let mut density = vec![0.0f32; 256 * 256];
     let mut color = vec![0.0f32; 256 * 256 * 3];
-    let grid = time(repeats, || {
+    let grid = time(&mut || {
         prep.point_grid(kernel, Region::full(res), &mut values)?;
         Ok(())
     })?;
-    let splat = time(repeats, || {
+    let splat = time(&mut || {
         prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color))?;
         Ok(())
     })?;
     let mut rgba = vec![0.0f32; 256 * 256 * 4];
-    let splat_rgba = time(repeats, || {
+    let splat_rgba = time(&mut || {
         prep.splat_region_rgba(kernel, Region::full(res), &mut rgba)?;
         Ok(())
     })?;
-    let splat_mixed = time(repeats, || {
+    let splat_mixed = time(&mut || {
         blend.splat_region_rgba(&weights, kernel, Region::full(res), &mut rgba)?;
         Ok(())
     })?;
