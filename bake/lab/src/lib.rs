@@ -6,7 +6,7 @@
 //!
 //! * [`timing`]: the one set of timing helpers every program here uses (a median, a thread-CPU and
 //!   a process-CPU clock, one timing loop);
-//! * [`bench`]: the solver bench behind `otbake bench` (solver kinds, the settings sweep,
+//! * [`bench`](mod@bench): the solver bench behind `otbake bench` (solver kinds, the settings sweep,
 //!   [`bench::measure`], rows, CSV and Markdown, the chart, the progress display); the baker hands
 //!   it the point clouds of each case through [`bench::Host`];
 //! * [`seam`]: how visible the join of a tile is, on plain pixel data.
