@@ -15,7 +15,107 @@ use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::{render, Archives, Method, RenderSettings};
 use otbake_lab::timing::{self, Clock};
-use otbake_runtime::{Blend, Kernel, PointValue, PreparedBuffers, Region};
+use otbake_runtime::{Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region};
+
+/// The runtime alone, one thread: mixing the weights once, then whole-image region queries.
+fn runtime_alone<'a>(
+    proxy: Proxy<'a>,
+    maps: &[Map<'a>],
+    weights: &[f32],
+    repeats: usize,
+) -> anyhow::Result<()> {
+    let blend = Blend::new(proxy, maps)?;
+    let sizes = blend.prepared_sizes();
+    let mut buffers = [
+        vec![0.0f32; sizes.positions],
+        vec![0.0f32; sizes.colors],
+        vec![0.0f32; sizes.node_boxes],
+        vec![0.0f32; sizes.node_colors],
+    ];
+    // Median wall and mean CPU seconds of this thread per call.
+    let time = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<(f64, f64)> {
+        let t = timing::time(repeats, Clock::Thread, f)?;
+        Ok((t.median(), t.cpu))
+    };
+    let prepare = time(&mut || {
+        let [p, c, b, nc] = &mut buffers;
+        blend.prepare(
+            weights,
+            PreparedBuffers {
+                positions: p,
+                colors: c,
+                node_boxes: b,
+                node_colors: nc,
+            },
+        )?;
+        Ok(())
+    })?;
+    // Its two halves on two threads (what the renders do); wall time only.
+    let (prepare_joined, _) = time(&mut || {
+        let [p, c, b, nc] = &mut buffers;
+        blend.prepare_with(
+            weights,
+            PreparedBuffers {
+                positions: p,
+                colors: c,
+                node_boxes: b,
+                node_colors: nc,
+            },
+            |geometry, color| {
+                rayon::join(geometry, color);
+            },
+        )?;
+        Ok(())
+    })?;
+    let [p, c, b, nc] = &mut buffers;
+    let prep = blend.prepare(
+        weights,
+        PreparedBuffers {
+            positions: p,
+            colors: c,
+            node_boxes: b,
+            node_colors: nc,
+        },
+    )?;
+    let res = [256, 256, 1, 1];
+    let kernel = Kernel { sigma: 0.5 / 256.0 };
+    let mut values = vec![PointValue::default(); 256 * 256];
+    let mut density = vec![0.0f32; 256 * 256];
+    let mut color = vec![0.0f32; 256 * 256 * 3];
+    let grid = time(&mut || {
+        prep.point_grid(kernel, Region::full(res), &mut values)?;
+        Ok(())
+    })?;
+    let splat = time(&mut || {
+        prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color))?;
+        Ok(())
+    })?;
+    let mut rgba = vec![0.0f32; 256 * 256 * 4];
+    let splat_rgba = time(&mut || {
+        prep.splat_region_rgba(kernel, Region::full(res), &mut rgba)?;
+        Ok(())
+    })?;
+    let splat_mixed = time(&mut || {
+        blend.splat_region_rgba(weights, kernel, Region::full(res), &mut rgba)?;
+        Ok(())
+    })?;
+    println!("runtime only, 1 thread, median wall / mean CPU ms:");
+    println!(
+        "  {:32} {:7.2} / (2 threads)",
+        "Blend::prepare_with rayon::join",
+        prepare_joined * 1e3
+    );
+    for (name, (wall, cpu)) in [
+        ("Blend::prepare", prepare),
+        ("Prepared::point_grid 256x256", grid),
+        ("Prepared::splat_region 256x256", splat),
+        ("Prepared::splat_region_rgba", splat_rgba),
+        ("Blend::splat_region_rgba", splat_mixed),
+    ] {
+        println!("  {name:32} {:7.2} / {:7.2}", wall * 1e3, cpu * 1e3);
+    }
+    Ok(())
+}
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -70,97 +170,7 @@ fn main() -> anyhow::Result<()> {
             rows.push((threads, method, med));
         }
     }
-    // The runtime alone, one thread: mixing the weights once, then whole-image region queries.
-    let blend = Blend::new(proxy, &maps)?;
-    let sizes = blend.prepared_sizes();
-    let mut buffers = [
-        vec![0.0f32; sizes.positions],
-        vec![0.0f32; sizes.colors],
-        vec![0.0f32; sizes.node_boxes],
-        vec![0.0f32; sizes.node_colors],
-    ];
-    // Median wall and mean CPU seconds of this thread per call.
-    let time = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<(f64, f64)> {
-        let t = timing::time(repeats, Clock::Thread, f)?;
-        Ok((t.median(), t.cpu))
-    };
-    let prepare = time(&mut || {
-        let [p, c, b, nc] = &mut buffers;
-        blend.prepare(
-            &weights,
-            PreparedBuffers {
-                positions: p,
-                colors: c,
-                node_boxes: b,
-                node_colors: nc,
-            },
-        )?;
-        Ok(())
-    })?;
-    // Its two halves on two threads (what the renders do); wall time only.
-    let (prepare_joined, _) = time(&mut || {
-        let [p, c, b, nc] = &mut buffers;
-        blend.prepare_with(
-            &weights,
-            PreparedBuffers {
-                positions: p,
-                colors: c,
-                node_boxes: b,
-                node_colors: nc,
-            },
-            |geometry, color| {
-                rayon::join(geometry, color);
-            },
-        )?;
-        Ok(())
-    })?;
-    let [p, c, b, nc] = &mut buffers;
-    let prep = blend.prepare(
-        &weights,
-        PreparedBuffers {
-            positions: p,
-            colors: c,
-            node_boxes: b,
-            node_colors: nc,
-        },
-    )?;
-    let res = [256, 256, 1, 1];
-    let kernel = Kernel { sigma: 0.5 / 256.0 };
-    let mut values = vec![PointValue::default(); 256 * 256];
-    let mut density = vec![0.0f32; 256 * 256];
-    let mut color = vec![0.0f32; 256 * 256 * 3];
-    let grid = time(&mut || {
-        prep.point_grid(kernel, Region::full(res), &mut values)?;
-        Ok(())
-    })?;
-    let splat = time(&mut || {
-        prep.splat_region(kernel, Region::full(res), &mut density, Some(&mut color))?;
-        Ok(())
-    })?;
-    let mut rgba = vec![0.0f32; 256 * 256 * 4];
-    let splat_rgba = time(&mut || {
-        prep.splat_region_rgba(kernel, Region::full(res), &mut rgba)?;
-        Ok(())
-    })?;
-    let splat_mixed = time(&mut || {
-        blend.splat_region_rgba(&weights, kernel, Region::full(res), &mut rgba)?;
-        Ok(())
-    })?;
-    println!("runtime only, 1 thread, median wall / mean CPU ms:");
-    println!(
-        "  {:32} {:7.2} / (2 threads)",
-        "Blend::prepare_with rayon::join",
-        prepare_joined * 1e3
-    );
-    for (name, (wall, cpu)) in [
-        ("Blend::prepare", prepare),
-        ("Prepared::point_grid 256x256", grid),
-        ("Prepared::splat_region 256x256", splat),
-        ("Prepared::splat_region_rgba", splat_rgba),
-        ("Blend::splat_region_rgba", splat_mixed),
-    ] {
-        println!("  {name:32} {:7.2} / {:7.2}", wall * 1e3, cpu * 1e3);
-    }
+    runtime_alone(proxy, &maps, &weights, repeats)?;
     for (threads, _, _) in rows.iter().filter(|r| r.1 == Method::Query) {
         let q = rows
             .iter()

@@ -135,6 +135,63 @@ impl Rng {
     }
 }
 
+/// The storages compared, by name: the reference, the preset, and the preset with one part
+/// changed.
+fn storages() -> Vec<(&'static str, Storage)> {
+    vec![
+        ("full", Storage::FULL),
+        ("compact", Storage::COMPACT),
+        (
+            "compact, u16 positions",
+            Storage {
+                positions: Precision::U16,
+                ..Storage::COMPACT
+            },
+        ),
+        (
+            "compact, no colors",
+            Storage {
+                colors: None,
+                node_colors: false,
+                ..Storage::COMPACT
+            },
+        ),
+        (
+            "compact, no node color sums",
+            Storage {
+                node_colors: false,
+                ..Storage::COMPACT
+            },
+        ),
+    ]
+}
+
+/// The median wall seconds of `Blend::prepare` over 5 calls, and the mean of a `Blend::point`
+/// call at `probes` (decoding on the fly).
+fn timings(
+    blend: &Blend<'_, '_>,
+    w: &[f32],
+    bufs: &mut [Vec<f32>; 4],
+    probes: &[Vec<f32>],
+    sigma: f32,
+) -> anyhow::Result<(f64, f64)> {
+    let prepare_times = timing::time(5, Clock::Thread, || {
+        let _ = prepare(blend, w, bufs);
+        Ok::<(), std::convert::Infallible>(())
+    });
+    let Ok(prepare_times) = prepare_times;
+    let mut sink = 0.0f32;
+    let (points, seconds) = timing::wall(|| -> anyhow::Result<()> {
+        for p in probes {
+            sink += blend.point(w, p, Kernel { sigma })?.density;
+        }
+        Ok(())
+    });
+    points?;
+    std::hint::black_box(sink);
+    Ok((prepare_times.median(), seconds / probes.len() as f64))
+}
+
 fn main() -> anyhow::Result<()> {
     let path = std::env::args()
         .nth(1)
@@ -183,32 +240,6 @@ fn main() -> anyhow::Result<()> {
         .collect();
 
     let colored = full_maps.iter().all(|m| m.has_color());
-    let storages: Vec<(&str, Storage)> = vec![
-        ("full", Storage::FULL),
-        ("compact", Storage::COMPACT),
-        (
-            "compact, u16 positions",
-            Storage {
-                positions: Precision::U16,
-                ..Storage::COMPACT
-            },
-        ),
-        (
-            "compact, no colors",
-            Storage {
-                colors: None,
-                node_colors: false,
-                ..Storage::COMPACT
-            },
-        ),
-        (
-            "compact, no node color sums",
-            Storage {
-                node_colors: false,
-                ..Storage::COMPACT
-            },
-        ),
-    ];
     println!("| storage | bytes per map | stated max position error | measured max / mean position error | stated max color error | point grid: max / mean density error (of max / mean density) | point grid: max color error (of max color) | range: max count error, mean relative | prepare | Blend::point |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut rng = Rng(11);
@@ -220,7 +251,7 @@ fn main() -> anyhow::Result<()> {
     } else {
         1.0 / [4096.0, 256.0, 64.0, 16.0][dim - 1]
     };
-    for (name, s) in storages {
+    for (name, s) in storages() {
         let bytes: Vec<AlignedVec<16>> = contents.iter().map(|c| encode(c, s)).collect();
         let maps: Vec<Map<'_>> = bytes
             .iter()
@@ -246,21 +277,7 @@ fn main() -> anyhow::Result<()> {
         let mean = sum / (k as f64 * n as f64 * dim as f64);
         let blend = Blend::new(archives.proxy()?, &maps)?;
         let mut bufs = buffers(&blend);
-        let prepare_times = timing::time(5, Clock::Thread, || {
-            let _ = prepare(&blend, &w, &mut bufs);
-            Ok::<(), std::convert::Infallible>(())
-        });
-        let Ok(prepare_times) = prepare_times;
-        let mut sink = 0.0f32;
-        let (points, seconds) = timing::wall(|| -> anyhow::Result<()> {
-            for p in &probes {
-                sink += blend.point(&w, p, Kernel { sigma })?.density;
-            }
-            Ok(())
-        });
-        points?;
-        let per_point = seconds / probes.len() as f64;
-        std::hint::black_box(sink);
+        let (prepare_median, per_point) = timings(&blend, &w, &mut bufs, &probes, sigma)?;
         let prep = prepare(&blend, &w, &mut bufs);
         let g = grid(&prep);
         let (mut dmax, mut dsum, mut cmax) = (0.0f32, 0.0f64, 0.0f32);
@@ -304,7 +321,7 @@ fn main() -> anyhow::Result<()> {
             dmean,
             dmax / max_density,
             dmean / mean_density,
-            prepare_times.median() * 1e3,
+            prepare_median * 1e3,
             per_point * 1e6,
         );
     }
