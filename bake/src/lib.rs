@@ -71,7 +71,6 @@ pub mod pipeline;
 pub mod proxy;
 pub mod render;
 pub mod sample;
-pub mod seam;
 /// The OT solvers, now the `otbake-ot` crate; re-exported under their old path.
 pub use otbake_ot as solve;
 pub mod spacing;

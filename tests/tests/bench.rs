@@ -48,7 +48,7 @@ fn quick_bench_writes_expected_rows_and_chart() {
     let csv = std::fs::read_to_string(dir.join("out/bench.csv")).unwrap();
     let mut lines = csv.lines();
     let header = fields(lines.next().unwrap());
-    assert_eq!(header, fields(otbake::bench::CSV_HEADER));
+    assert_eq!(header, fields(otbake_lab::bench::CSV_HEADER));
     let rows: Vec<HashMap<String, String>> = lines
         .map(|l| header.iter().cloned().zip(fields(l)).collect())
         .collect();
@@ -81,7 +81,7 @@ fn quick_bench_writes_expected_rows_and_chart() {
 
     for r in &rows {
         let what = format!("{r:?}");
-        assert_eq!(r["n"], otbake::bench::QUICK_N.to_string(), "{what}");
+        assert_eq!(r["n"], otbake_lab::bench::QUICK_N.to_string(), "{what}");
         assert_eq!(r["converged"], "true", "{what}");
         assert_eq!(r["error"], "", "{what}");
         let seconds = num(r, "seconds").unwrap();

@@ -8,7 +8,7 @@ use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions, Status};
 use otbake::render::texture::{render_texture, WeightField};
 use otbake::render::Archives;
-use otbake::seam::{seam, seam_of_file};
+use otbake_lab::seam::{seam, seam_of_file};
 use otbake_runtime::{Blend, Kernel, Wrap};
 use otbake_tests::{otbake_err, otbake_ok, scratch, shared_data, write_manifest};
 use std::path::PathBuf;
@@ -55,7 +55,7 @@ fn tile_seam(m: &Manifest, w: &[f32]) -> f64 {
     let maps = a.maps().unwrap();
     let field = WeightField::Constant(w.to_vec());
     let img = render_texture(a.proxy().unwrap(), &maps, &field, 128, 128, 1.5).unwrap();
-    seam(&img).worst()
+    seam(img.width, img.height, &img.pixels).worst()
 }
 
 /// The test: the seam of a blended tile of two tileable textures is no worse than the

@@ -2,7 +2,7 @@
 //! error from the map's (the figures of BENCHMARKS.md, "BRDF kernels: accuracy").
 //!
 //! ```sh
-//! cargo run --release --example brdf_accuracy -- manifests/brdfs.toml [INPUT] [SCALES] [SIGMA]
+//! cargo run --release -p otbake-lab --example brdf_accuracy -- manifests/brdfs.toml [INPUT] [SCALES] [SIGMA]
 //! ```
 //! Bakes what is missing first. For input INPUT (default 1, garnet_red in `manifests/brdfs.toml`)
 //! it evaluates `BrdfBlend::eval_angles` at weights `(0, …, 1, …, 0)` at fixed `(θi, θo, φd)`
@@ -25,8 +25,8 @@ use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
 use otbake::render::Archives;
 use otbake_formats::Wrap;
+use otbake_lab::timing;
 use otbake_runtime::{AdaptiveKernel, Kernel, Map, Proxy};
-use std::time::Instant;
 
 /// `(θi, θo, φd)` in radians.
 const POINTS: [(f64, f64, f64); 20] = [
@@ -73,11 +73,12 @@ fn main() -> anyhow::Result<()> {
     let grid = otbake::input::load_with(&spec.path, spec.density, &spec.options)?;
     let samples = otbake::sample::importance_sample(&grid, m.proxy.samples, spec.seed)?;
     let dim = 3;
-    let t = Instant::now();
-    let order = otbake::tree::tree_order(&samples, dim, m.proxy.leaf_size);
-    let positions = otbake::tree::permute(&samples, dim, &order);
-    let spacings = otbake::spacing::spacings(&positions, dim, Wrap::Clamp);
-    let spacing_seconds = t.elapsed().as_secs_f64();
+    let ((positions, spacings), spacing_seconds) = timing::wall(|| {
+        let order = otbake::tree::tree_order(&samples, dim, m.proxy.leaf_size);
+        let positions = otbake::tree::permute(&samples, dim, &order);
+        let spacings = otbake::spacing::spacings(&positions, dim, Wrap::Clamp);
+        (positions, spacings)
+    });
     let (proxy, identity) = otbake::pipeline::archive::identity_archives(
         &grid,
         dim,

@@ -6,26 +6,18 @@
 //! (`otbake::render::render`, on rayon's threads: `RAYON_NUM_THREADS=1` for one), equal weights.
 //!
 //! ```sh
-//! cargo run --release --example region_probe -- manifests/shapes.toml splat 100
+//! cargo run --release -p otbake-lab --example region_probe -- manifests/shapes.toml splat 100
 //! valgrind --tool=callgrind target/release/examples/region_probe manifests/shapes.toml splat 4
 //! ```
 //! Prints the minimum and median wall time per call and this thread's mean CPU time per call
-//! (Linux `schedstat`). Instruction counts per call are the difference of two callgrind runs with
+//! (`otbake_lab::timing`). Instruction counts per call are the difference of two callgrind runs with
 //! different REPEATS (the archives are loaded and checked once per run). Bake the manifest first
 //! (`otbake bake`, or `blend_timing`, which bakes what is missing).
 
 use otbake::manifest::Manifest;
 use otbake::render::{render, Archives, Method, RenderSettings};
+use otbake_lab::timing::{self, Clock, Timing};
 use otbake_runtime::{Blend, Kernel, PointValue, Region};
-use std::time::Instant;
-
-/// CPU time this thread has run, in seconds (Linux); 0 elsewhere.
-fn thread_cpu() -> f64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
-        .map_or(0.0, |ns| ns * 1e-9)
-}
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -46,18 +38,10 @@ fn main() -> anyhow::Result<()> {
     let mut density = vec![0.0f32; 256 * 256];
     let mut color = vec![0.0f32; 256 * 256 * 3];
     let mut rgba = vec![0.0f32; 256 * 256 * 4];
-    let mut times = Vec::with_capacity(repeats);
-    let mut cpu = 0.0;
-    let mut timed = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<()> {
-        for _ in 0..repeats {
-            let (t, c) = (Instant::now(), thread_cpu());
-            f()?;
-            times.push(t.elapsed().as_secs_f64());
-            cpu += thread_cpu() - c;
-        }
-        Ok(())
+    let timed = |f: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<Timing> {
+        timing::time(repeats, Clock::Thread, f)
     };
-    match which.as_str() {
+    let t = match which.as_str() {
         "prepare" => timed(&mut || {
             blend.prepare(&weights, sizes.split(&mut store).expect("sized by total"))?;
             Ok(())
@@ -97,17 +81,12 @@ fn main() -> anyhow::Result<()> {
             }
         }
         other => anyhow::bail!("unknown call {other:?}: use splat, rgba, mixed, grid or prepare"),
-    }
-    times.sort_by(f64::total_cmp);
-    let (min, median) = (
-        times.first().copied().unwrap_or(f64::NAN),
-        times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
-    );
+    };
     println!(
         "{which}: min {:.2} ms, median {:.2} ms, mean CPU {:.2} ms over {repeats} calls",
-        min * 1e3,
-        median * 1e3,
-        cpu * 1e3 / repeats.max(1) as f64
+        t.min() * 1e3,
+        t.median() * 1e3,
+        if repeats == 0 { 0.0 } else { t.cpu * 1e3 }
     );
     Ok(())
 }

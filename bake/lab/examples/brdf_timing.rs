@@ -2,7 +2,7 @@
 //! kernel and the density-adaptive one in the same run.
 //!
 //! ```sh
-//! cargo run --release --example brdf_timing -- manifests/brdfs.toml [CALLS] [SIGMA] [SCALE] [ROUNDS] [MAX_SIGMA]
+//! cargo run --release -p otbake-lab --example brdf_timing -- manifests/brdfs.toml [CALLS] [SIGMA] [SCALE] [ROUNDS] [MAX_SIGMA]
 //! ```
 //! Bakes what is missing first. Uses equal weights over all inputs; evaluates CALLS (default 100000)
 //! uniformly random direction pairs and draws CALLS samples (each with its pdf), and reports the
@@ -16,8 +16,8 @@ use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::brdf::eval::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE, DEFAULT_SIGMA};
 use otbake::render::Archives;
+use otbake_lab::timing;
 use otbake_runtime::{AdaptiveKernel, Kernel};
-use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -68,32 +68,42 @@ fn main() -> anyhow::Result<()> {
         for (name, kernel) in kernels {
             let b = BrdfBlend::with_kernel(archives.proxy()?, &maps, kernel)?;
             let n = b.blend.n();
-            let t = Instant::now();
-            for i in 0..calls {
-                let (wi, wo) = pair(i);
-                sink += f64::from(b.eval(&w, wi, wo)?[1]);
-            }
-            let eval = t.elapsed().as_secs_f64() / f64::from(calls);
-            let t = Instant::now();
+            // Each loop of `calls` calls is timed as one (`timing::wall`), divided by `calls`.
+            let (evals, seconds) = timing::wall(|| -> anyhow::Result<()> {
+                for i in 0..calls {
+                    let (wi, wo) = pair(i);
+                    sink += f64::from(b.eval(&w, wi, wo)?[1]);
+                }
+                Ok(())
+            });
+            evals?;
+            let eval = seconds / f64::from(calls);
             let mut failed = 0;
-            for i in 0..calls {
-                let xi = [
-                    0.3,
-                    0.7,
-                    frac(f64::from(i) * 0.618_034),
-                    frac(f64::from(i) * 0.754_877_666),
-                    frac(f64::from(i) * 0.569_840_291),
-                ];
-                let s = b.sample(&w, index(i, n), xi)?;
-                failed += u32::from(s.pdf == 0.0);
-                sink += s.pdf;
-            }
-            let sample = t.elapsed().as_secs_f64() / f64::from(calls);
-            let t = Instant::now();
-            for i in 0..calls {
-                sink += f64::from(b.blend.sample(&w, index(i, n))?.position[0]);
-            }
-            let raw = t.elapsed().as_secs_f64() / f64::from(calls);
+            let (samples, seconds) = timing::wall(|| -> anyhow::Result<()> {
+                for i in 0..calls {
+                    let xi = [
+                        0.3,
+                        0.7,
+                        frac(f64::from(i) * 0.618_034),
+                        frac(f64::from(i) * 0.754_877_666),
+                        frac(f64::from(i) * 0.569_840_291),
+                    ];
+                    let s = b.sample(&w, index(i, n), xi)?;
+                    failed += u32::from(s.pdf == 0.0);
+                    sink += s.pdf;
+                }
+                Ok(())
+            });
+            samples?;
+            let sample = seconds / f64::from(calls);
+            let (raws, seconds) = timing::wall(|| -> anyhow::Result<()> {
+                for i in 0..calls {
+                    sink += f64::from(b.blend.sample(&w, index(i, n))?.position[0]);
+                }
+                Ok(())
+            });
+            raws?;
+            let raw = seconds / f64::from(calls);
             println!(
                 "round {round} {name:>8} (k = {k}, n = {n}, {kernel:?}): eval {:.2} us/call, sample + pdf {:.2} us/call ({failed} failed), Blend::sample alone {:.3} us/call",
                 eval * 1e6,

@@ -1,7 +1,7 @@
 //! Times point queries of a 3D blend per call (single thread) and the render of a Fig. 11 triangle.
 //!
 //! ```sh
-//! cargo run --release --example volume_timing -- manifests/volumes.toml [CALLS] [SIGMA] [TRIANGLE_STEPS] [SIZE]
+//! cargo run --release -p otbake-lab --example volume_timing -- manifests/volumes.toml [CALLS] [SIGMA] [TRIANGLE_STEPS] [SIZE]
 //! ```
 //! Bakes what is missing first. Point queries use equal weights: `Blend::point` (weights mixed at
 //! every visited node), and `Prepared::point` after one `Blend::prepare`, each at CALLS points of
@@ -15,8 +15,8 @@ use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::volume::{render_triangle, RenderSettings, DEFAULT_SIGMA};
 use otbake::render::Archives;
+use otbake_lab::timing;
 use otbake_runtime::{Blend, Kernel};
-use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -57,27 +57,31 @@ fn main() -> anyhow::Result<()> {
 
     let sizes = blend.prepared_sizes();
     let mut store = vec![0f32; sizes.total()];
-    let t = Instant::now();
-    let prep = blend.prepare(
-        &w,
-        sizes
-            .split(&mut store)
-            .expect("sized by PreparedSizes::total"),
-    )?;
-    let prepare = t.elapsed().as_secs_f64();
+    let (prep, prepare) = timing::wall(|| {
+        blend.prepare(
+            &w,
+            sizes
+                .split(&mut store)
+                .expect("sized by PreparedSizes::total"),
+        )
+    });
+    let prep = prep?;
 
     let mut sink = 0.0f64;
     let mut per_call = |points: &[[f32; 3]], prepared: bool| -> anyhow::Result<f64> {
-        let t = Instant::now();
-        for p in points {
-            let v = if prepared {
-                prep.point(p, kernel)?
-            } else {
-                blend.point(&w, p, kernel)?
-            };
-            sink += f64::from(v.density);
-        }
-        Ok(t.elapsed().as_secs_f64() / points.len() as f64 * 1e6)
+        let (calls, seconds) = timing::wall(|| -> anyhow::Result<()> {
+            for p in points {
+                let v = if prepared {
+                    prep.point(p, kernel)?
+                } else {
+                    blend.point(&w, p, kernel)?
+                };
+                sink += f64::from(v.density);
+            }
+            Ok(())
+        });
+        calls?;
+        Ok(seconds / points.len() as f64 * 1e6)
     };
     let blend_uniform = per_call(&uniform, false)?;
     let blend_on = per_call(&on_blend, false)?;
@@ -119,14 +123,14 @@ fn main() -> anyhow::Result<()> {
             sigma,
             ..Default::default()
         };
-        let t = Instant::now();
-        let img = render_triangle(&archives, steps, &s)?;
+        let (img, seconds) = timing::wall(|| render_triangle(&archives, steps, &s));
+        let img = img?;
         println!(
             "triangle of {steps} rows, {size}² per blend ({}x{} image), {} threads: {:.1} s",
             img.width,
             img.height,
             rayon::current_num_threads(),
-            t.elapsed().as_secs_f64()
+            seconds
         );
     }
     Ok(())

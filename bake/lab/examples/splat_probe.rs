@@ -1,10 +1,10 @@
-//! Times and profiles the renderer's splat with the runtime alone (no baker, so it rebuilds in
-//! seconds after a runtime change): `Blend::splat_region_rgba` of a 256² image at σ = ½ px, equal
+//! Times and profiles the renderer's splat with the runtime alone (it calls no baker code, so a
+//! profile shows only the runtime): `Blend::splat_region_rgba` of a 256² image at σ = ½ px, equal
 //! weights, over the archives in a baked 2D manifest's output directory (`proxy.otb` and the
 //! named maps, in the order given).
 //!
 //! ```sh
-//! cargo run --release -p otbake-runtime --example splat_probe -- out/shapes redcross,tooth,heart,duck mixed 200
+//! cargo run --release -p otbake-lab --example splat_probe -- out/shapes redcross,tooth,heart,duck mixed 200
 //! valgrind --tool=callgrind target/release/examples/splat_probe out/shapes redcross,tooth,heart,duck mixed 4
 //! ```
 //!
@@ -12,39 +12,18 @@
 //! (two bands of equal rows on two threads, each zeroed and splatted as the renderer does),
 //! `compare:DIR2` (one splat of the same maps baked into DIR2 against this one: the largest cell
 //! difference per channel, relative to the largest value of the channel in this image). Prints the
-//! fastest and median wall time per call and the mean CPU time per call of the calling thread
-//! (Linux `schedstat`; for `bands2`, of the process, in 10 ms ticks). Instruction counts per call are the
+//! fastest and median wall time per call and the mean CPU time per call of the calling thread (for
+//! `bands2`, of the whole process; `otbake_lab::timing`). Instruction counts per call are the
 //! difference of two callgrind runs with different REPEATS.
 
-use otbake_runtime::{Blend, Kernel, Map, Proxy, Region};
+use otbake_lab::timing::{self, Clock};
+use otbake_runtime::{Blend, Error, Kernel, Map, Proxy, Region};
 use std::path::Path;
-use std::time::Instant;
 
 fn load(dir: &Path, name: &str) -> rkyv::util::AlignedVec<16> {
     let path = dir.join(format!("{name}.otb"));
     let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     otbake_formats::write::aligned_copy(&bytes)
-}
-
-/// CPU time of this thread (`self`) or of the whole process (all tasks), in seconds.
-fn cpu(process: bool) -> f64 {
-    let read = |p: &Path| -> f64 {
-        std::fs::read_to_string(p)
-            .ok()
-            .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
-            .map_or(0.0, |ns| ns * 1e-9)
-    };
-    if !process {
-        return read(Path::new("/proc/thread-self/schedstat"));
-    }
-    // utime + stime of the process, dead threads included, in clock ticks (USER_HZ = 100).
-    std::fs::read_to_string("/proc/self/stat")
-        .ok()
-        .and_then(|s| {
-            let f: Vec<&str> = s.rsplit(')').next()?.split_whitespace().collect();
-            Some((f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?) * 0.01)
-        })
-        .unwrap_or(0.0)
 }
 
 const RES: [u32; 4] = [256, 256, 1, 1];
@@ -69,33 +48,29 @@ fn main() {
     let weights = vec![1.0 / maps.len() as f32; maps.len()];
     let kernel = Kernel { sigma: 0.5 / 256.0 };
     let mut rgba = vec![0.0f32; 256 * 256 * 4];
-    let mut times = Vec::with_capacity(repeats);
-    let process = call == "bands2";
-    let c0 = cpu(process);
-    match call.as_str() {
-        "mixed" => {
-            for _ in 0..repeats {
-                let t = Instant::now();
-                rgba.fill(0.0);
-                blend
-                    .splat_region_rgba(&weights, kernel, Region::full(RES), &mut rgba)
-                    .expect("splat");
-                times.push(t.elapsed().as_secs_f64());
-            }
-        }
+    // `bands2` keeps two threads busy: the CPU time of the whole process.
+    let clock = if call == "bands2" {
+        Clock::Process
+    } else {
+        Clock::Thread
+    };
+    let t = match call.as_str() {
+        "mixed" => timing::time(repeats, clock, || {
+            rgba.fill(0.0);
+            blend.splat_region_rgba(&weights, kernel, Region::full(RES), &mut rgba)
+        })
+        .expect("splat"),
         "rgba" => {
             let sizes = blend.prepared_sizes();
             let mut store = vec![0.0f32; sizes.total()];
             let prep = blend
                 .prepare(&weights, sizes.split(&mut store).expect("sized"))
                 .expect("prepare");
-            for _ in 0..repeats {
-                let t = Instant::now();
+            timing::time(repeats, clock, || {
                 rgba.fill(0.0);
                 prep.splat_region_rgba(kernel, Region::full(RES), &mut rgba)
-                    .expect("splat");
-                times.push(t.elapsed().as_secs_f64());
-            }
+            })
+            .expect("splat")
         }
         "bands2" => {
             let (top, bottom) = rgba.split_at_mut(128 * 256 * 4);
@@ -124,15 +99,16 @@ fn main() {
                         barrier.wait();
                     });
                 }
-                for _ in 0..repeats {
-                    let t = Instant::now();
+                let t = timing::time(repeats, clock, || {
                     barrier.wait();
                     barrier.wait();
-                    times.push(t.elapsed().as_secs_f64());
-                }
+                    Ok::<(), Error>(())
+                })
+                .expect("cannot fail");
                 stop.store(true, std::sync::atomic::Ordering::Relaxed);
                 barrier.wait();
-            });
+                t
+            })
         }
         other => {
             let Some(dir2) = other.strip_prefix("compare:") else {
@@ -174,13 +150,11 @@ fn main() {
             }
             return;
         }
-    }
-    let c = (cpu(process) - c0) / repeats.max(1) as f64;
-    times.sort_by(f64::total_cmp);
+    };
     println!(
         "{call}: min {:.3} ms, median {:.3} ms, mean CPU {:.3} ms over {repeats} calls",
-        times.first().copied().unwrap_or(f64::NAN) * 1e3,
-        times.get(times.len() / 2).copied().unwrap_or(f64::NAN) * 1e3,
-        c * 1e3
+        t.min() * 1e3,
+        t.median() * 1e3,
+        if repeats == 0 { 0.0 } else { t.cpu * 1e3 }
     );
 }

@@ -1,8 +1,8 @@
 //! Seams of rendered tiles of a texture manifest: every input alone and blends of them, against the
-//! seams of the input files themselves (the measure of `shared/data/README.md`, [`otbake::seam`]).
+//! seams of the input files themselves (the measure of `shared/data/README.md`, `otbake_lab::seam`).
 //!
 //! ```sh
-//! cargo run --release --example seam_report -- manifests/textures.toml [SIZE] [SIGMA_PX]
+//! cargo run --release -p otbake-lab --example seam_report -- manifests/textures.toml [SIZE] [SIGMA_PX]
 //! ```
 //! Bakes what is missing first, then renders square tiles of SIZE² pixels (default 256) the way
 //! `otbake texture` does (one point query per pixel, kernel σ = SIGMA_PX pixels, default 1.5) and
@@ -14,9 +14,10 @@
 
 use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
+use otbake::render::imageio::Rgba;
 use otbake::render::texture::{render_texture, WeightField};
 use otbake::render::{render, Archives, Method, RenderSettings};
-use otbake::seam::{seam, seam_of_file, spread, Seam};
+use otbake_lab::seam::{seam, seam_of_file, spread, Seam};
 
 fn row(name: &str, s: Seam, noise: Option<Seam>) {
     let noise = noise.map_or("—".to_string(), |n| {
@@ -28,6 +29,14 @@ fn row(name: &str, s: Seam, noise: Option<Seam>) {
         s.vertical,
         s.worst()
     );
+}
+
+/// The seam of a rendered image and the spread of its interior pairs.
+fn seams(img: &Rgba) -> (Seam, Seam) {
+    (
+        seam(img.width, img.height, &img.pixels),
+        spread(img.width, img.height, &img.pixels),
+    )
 }
 
 fn main() -> anyhow::Result<()> {
@@ -81,7 +90,8 @@ fn main() -> anyhow::Result<()> {
     for (name, w) in &weights {
         let field = WeightField::Constant(w.clone());
         let img = render_texture(archives.proxy()?, &maps, &field, size, size, sigma_px)?;
-        row(&format!("{name} (texture)"), seam(&img), Some(spread(&img)));
+        let (s, noise) = seams(&img);
+        row(&format!("{name} (texture)"), s, Some(noise));
         let settings = RenderSettings {
             width: size,
             height: size,
@@ -89,7 +99,8 @@ fn main() -> anyhow::Result<()> {
             sigma_px,
         };
         let img = render(archives.proxy()?, &maps, w, &settings)?;
-        row(&format!("{name} (splat)"), seam(&img), Some(spread(&img)));
+        let (s, noise) = seams(&img);
+        row(&format!("{name} (splat)"), s, Some(noise));
     }
     Ok(())
 }

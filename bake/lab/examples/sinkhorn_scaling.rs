@@ -1,7 +1,7 @@
 //! Sinkhorn (assignment map) against the exact solver on one shape: the figures of BENCHMARKS.md,
 //! "Sinkhorn: time and accuracy by n".
 //!
-//! `cargo run --release --example sinkhorn_scaling -- N SHAPE [exact] [KEY=VALUE ..]`, e.g.
+//! `cargo run --release -p otbake-lab --example sinkhorn_scaling -- N SHAPE [exact] [KEY=VALUE ..]`, e.g.
 //! `5000 duck exact` or `250000 duck tolerance=3e-4 auction_eps=0.0625` (keys: blur_spacing,
 //! tolerance, truncate, auction_eps, scaling; `seed` is the shape's sample seed, 1 unless given).
 //! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
@@ -16,7 +16,7 @@ use otbake::proxy::{proxy_points, ProxyShape};
 use otbake::sample::importance_sample;
 use otbake::solve::metrics::l2_uvp;
 use otbake::solve::{solve, ExactSettings, Problem, SinkhornSettings, SolverSettings};
-use std::time::Instant;
+use otbake_lab::timing;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -67,26 +67,24 @@ fn main() {
         source: &source,
         target: &target,
     };
-    let t = Instant::now();
-    let sk = solve(&problem, &SolverSettings::Sinkhorn(settings)).expect("sinkhorn");
+    let (sk, seconds) = timing::wall(|| solve(&problem, &SolverSettings::Sinkhorn(settings)));
+    let sk = sk.expect("sinkhorn");
     println!(
-        "sinkhorn n={n} {shape}: {:.3} s, cost {:.6e}\n  {}",
-        t.elapsed().as_secs_f64(),
-        sk.report.cost,
-        sk.report.detail
+        "sinkhorn n={n} {shape}: {seconds:.3} s, cost {:.6e}\n  {}",
+        sk.report.cost, sk.report.detail
     );
     if with_exact {
-        let t = Instant::now();
-        let ex = solve(
-            &problem,
-            &SolverSettings::Exact(ExactSettings {
-                max_n: n.max(10_000),
-            }),
-        )
-        .expect("exact");
+        let (ex, seconds) = timing::wall(|| {
+            solve(
+                &problem,
+                &SolverSettings::Exact(ExactSettings {
+                    max_n: n.max(10_000),
+                }),
+            )
+        });
+        let ex = ex.expect("exact");
         println!(
-            "exact: {:.3} s, cost {:.6e}; sinkhorn/exact cost ratio {:.5}, L2-UVP {:.4}%",
-            t.elapsed().as_secs_f64(),
+            "exact: {seconds:.3} s, cost {:.6e}; sinkhorn/exact cost ratio {:.5}, L2-UVP {:.4}%",
             ex.report.cost,
             sk.report.cost / ex.report.cost,
             l2_uvp(dim, &sk.mapped, &ex.mapped, &target).expect("uvp")

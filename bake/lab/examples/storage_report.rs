@@ -1,7 +1,7 @@
 //! Sizes and errors of a baked manifest's maps under each storage (the figures of BENCHMARKS.md).
 //!
 //! ```sh
-//! cargo run --release --example storage_report -- manifests/onyx-rock-1m.toml
+//! cargo run --release -p otbake-lab --example storage_report -- manifests/onyx-rock-1m.toml
 //! ```
 //! Bakes the manifest (which must store in full: it is the reference) if needed, then re-encodes
 //! every map under each storage with the encoder the baker uses (`encode_map_content`, so sizes are
@@ -18,9 +18,9 @@ use otbake::render::Archives;
 use otbake_formats::storage::{Precision, Storage};
 use otbake_formats::tree;
 use otbake_formats::write::{encode_map_content, MapContent};
+use otbake_lab::timing::{self, Clock};
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Prepared, PreparedBuffers, Proxy, Region};
 use rkyv::util::AlignedVec;
-use std::time::Instant;
 
 /// A map's content in full precision.
 struct Content {
@@ -135,6 +135,63 @@ impl Rng {
     }
 }
 
+/// The storages compared, by name: the reference, the preset, and the preset with one part
+/// changed.
+fn storages() -> Vec<(&'static str, Storage)> {
+    vec![
+        ("full", Storage::FULL),
+        ("compact", Storage::COMPACT),
+        (
+            "compact, u16 positions",
+            Storage {
+                positions: Precision::U16,
+                ..Storage::COMPACT
+            },
+        ),
+        (
+            "compact, no colors",
+            Storage {
+                colors: None,
+                node_colors: false,
+                ..Storage::COMPACT
+            },
+        ),
+        (
+            "compact, no node color sums",
+            Storage {
+                node_colors: false,
+                ..Storage::COMPACT
+            },
+        ),
+    ]
+}
+
+/// The median wall seconds of `Blend::prepare` over 5 calls, and the mean of a `Blend::point`
+/// call at `probes` (decoding on the fly).
+fn timings(
+    blend: &Blend<'_, '_>,
+    w: &[f32],
+    bufs: &mut [Vec<f32>; 4],
+    probes: &[Vec<f32>],
+    sigma: f32,
+) -> anyhow::Result<(f64, f64)> {
+    let prepare_times = timing::time(5, Clock::Thread, || {
+        let _ = prepare(blend, w, bufs);
+        Ok::<(), std::convert::Infallible>(())
+    });
+    let Ok(prepare_times) = prepare_times;
+    let mut sink = 0.0f32;
+    let (points, seconds) = timing::wall(|| -> anyhow::Result<()> {
+        for p in probes {
+            sink += blend.point(w, p, Kernel { sigma })?.density;
+        }
+        Ok(())
+    });
+    points?;
+    std::hint::black_box(sink);
+    Ok((prepare_times.median(), seconds / probes.len() as f64))
+}
+
 fn main() -> anyhow::Result<()> {
     let path = std::env::args()
         .nth(1)
@@ -144,9 +201,9 @@ fn main() -> anyhow::Result<()> {
         m.storage == Storage::FULL,
         "{path}: the reference must be stored in full (remove its [storage] section)"
     );
-    let t = Instant::now();
-    bake(&m, &BakeOptions::default())?;
-    eprintln!("bake check/bake: {:.1} s", t.elapsed().as_secs_f64());
+    let (baked, seconds) = timing::wall(|| bake(&m, &BakeOptions::default()));
+    baked?;
+    eprintln!("bake check/bake: {seconds:.1} s");
     let archives = Archives::load(&m)?;
     let proxy: Proxy<'_> = archives.proxy()?;
     let full_maps = archives.maps()?;
@@ -183,32 +240,6 @@ fn main() -> anyhow::Result<()> {
         .collect();
 
     let colored = full_maps.iter().all(|m| m.has_color());
-    let storages: Vec<(&str, Storage)> = vec![
-        ("full", Storage::FULL),
-        ("compact", Storage::COMPACT),
-        (
-            "compact, u16 positions",
-            Storage {
-                positions: Precision::U16,
-                ..Storage::COMPACT
-            },
-        ),
-        (
-            "compact, no colors",
-            Storage {
-                colors: None,
-                node_colors: false,
-                ..Storage::COMPACT
-            },
-        ),
-        (
-            "compact, no node color sums",
-            Storage {
-                node_colors: false,
-                ..Storage::COMPACT
-            },
-        ),
-    ];
     println!("| storage | bytes per map | stated max position error | measured max / mean position error | stated max color error | point grid: max / mean density error (of max / mean density) | point grid: max color error (of max color) | range: max count error, mean relative | prepare | Blend::point |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut rng = Rng(11);
@@ -220,7 +251,7 @@ fn main() -> anyhow::Result<()> {
     } else {
         1.0 / [4096.0, 256.0, 64.0, 16.0][dim - 1]
     };
-    for (name, s) in storages {
+    for (name, s) in storages() {
         let bytes: Vec<AlignedVec<16>> = contents.iter().map(|c| encode(c, s)).collect();
         let maps: Vec<Map<'_>> = bytes
             .iter()
@@ -246,20 +277,7 @@ fn main() -> anyhow::Result<()> {
         let mean = sum / (k as f64 * n as f64 * dim as f64);
         let blend = Blend::new(archives.proxy()?, &maps)?;
         let mut bufs = buffers(&blend);
-        let mut times = Vec::new();
-        for _ in 0..5 {
-            let t = Instant::now();
-            let _ = prepare(&blend, &w, &mut bufs);
-            times.push(t.elapsed().as_secs_f64());
-        }
-        times.sort_by(f64::total_cmp);
-        let t = Instant::now();
-        let mut sink = 0.0f32;
-        for p in &probes {
-            sink += blend.point(&w, p, Kernel { sigma })?.density;
-        }
-        let per_point = t.elapsed().as_secs_f64() / probes.len() as f64;
-        std::hint::black_box(sink);
+        let (prepare_median, per_point) = timings(&blend, &w, &mut bufs, &probes, sigma)?;
         let prep = prepare(&blend, &w, &mut bufs);
         let g = grid(&prep);
         let (mut dmax, mut dsum, mut cmax) = (0.0f32, 0.0f64, 0.0f32);
@@ -303,7 +321,7 @@ fn main() -> anyhow::Result<()> {
             dmean,
             dmax / max_density,
             dmean / mean_density,
-            times[times.len() / 2] * 1e3,
+            prepare_median * 1e3,
             per_point * 1e6,
         );
     }

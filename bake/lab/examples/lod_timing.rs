@@ -3,14 +3,14 @@
 //! texture's 256² texel resolution (one per texel, the cost a renderer pays without LOD).
 //!
 //! ```sh
-//! cargo run --release --example lod_timing -- manifests/terrain.toml
+//! cargo run --release -p otbake-lab --example lod_timing -- manifests/terrain.toml
 //! ```
 
 use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake::render::Archives;
+use otbake_lab::timing;
 use otbake_runtime::{Blend, Kernel};
-use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
     let path = std::env::args()
@@ -36,12 +36,15 @@ fn main() -> anyhow::Result<()> {
         (rng >> 40) as f32 / (1u64 << 24) as f32
     };
     let reps = 20_000;
-    let t = Instant::now();
     let mut sink = 0.0f32;
-    for _ in 0..reps {
-        sink += blend.point(&w, &[unit(), unit()], kernel)?.mass;
-    }
-    let point = t.elapsed().as_secs_f64() / reps as f64;
+    let (points, seconds) = timing::wall(|| -> anyhow::Result<()> {
+        for _ in 0..reps {
+            sink += blend.point(&w, &[unit(), unit()], kernel)?.mass;
+        }
+        Ok(())
+    });
+    points?;
+    let point = seconds / reps as f64;
     println!(
         "{path}: n = {}, k = {k}; one point query: {:.2} µs",
         blend.n(),
@@ -51,12 +54,15 @@ fn main() -> anyhow::Result<()> {
     for f_texels in [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0] {
         let f = f_texels / texels;
         let reps = 2_000;
-        let t = Instant::now();
-        for _ in 0..reps {
-            let (x, y) = (unit() * (1.0 - f), unit() * (1.0 - f));
-            sink += blend.range(&w, &[x, y], &[x + f, y + f])?.mass;
-        }
-        let range = t.elapsed().as_secs_f64() / reps as f64;
+        let (ranges, seconds) = timing::wall(|| -> anyhow::Result<()> {
+            for _ in 0..reps {
+                let (x, y) = (unit() * (1.0 - f), unit() * (1.0 - f));
+                sink += blend.range(&w, &[x, y], &[x + f, y + f])?.mass;
+            }
+            Ok(())
+        });
+        ranges?;
+        let range = seconds / reps as f64;
         let super_cost = point * (f_texels * f_texels) as f64;
         println!(
             "{f_texels:>8} × {f_texels:<8} {:>9.2} µs {:>22.2} µs {:>16.1}×",

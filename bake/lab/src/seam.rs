@@ -8,8 +8,9 @@
 //!
 //! Differences are taken on display values (sRGB-encoded, clamped to [0, 1]) averaged over R, G, B:
 //! what a viewer sees, and what the README's figures were measured on (8-bit files).
-
-use crate::render::imageio::{linear_to_srgb, Rgba};
+//!
+//! Rendered images come in as plain linear RGBA (`width × height × 4` values, straight alpha, as
+//! `otbake::render::imageio::Rgba` holds them), so this module needs nothing from the baker.
 
 /// The seam across each join of a tile.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -97,22 +98,52 @@ pub fn interior_spread(
     }
 }
 
-/// The display value of pixel (x, y) of a linear image: sRGB-encoded, clamped to [0, 1].
-fn display(img: &Rgba) -> impl Fn(usize, usize) -> [f64; 3] + '_ {
-    move |x, y| {
-        let i = (y * img.width + x) * 4;
-        std::array::from_fn(|c| f64::from(linear_to_srgb(img.pixels[i + c].clamp(0.0, 1.0))))
+/// The sRGB transfer function of a linear value clamped to [0, 1]: the encoding the baker's
+/// image writer uses (`otbake::render::imageio::linear_to_srgb`; a test checks they agree).
+fn linear_to_srgb(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
     }
 }
 
-/// [`interior_spread`] of a rendered (linear) image, on its sRGB display values.
-pub fn spread(img: &Rgba) -> Seam {
-    interior_spread(img.width, img.height, display(img))
+/// The display value of pixel (x, y) of a linear RGBA image `width` pixels wide: sRGB-encoded,
+/// clamped to [0, 1].
+fn display(width: usize, rgba: &[f32]) -> impl Fn(usize, usize) -> [f64; 3] + '_ {
+    move |x, y| {
+        let i = (y * width + x) * 4;
+        std::array::from_fn(|c| f64::from(linear_to_srgb(rgba[i + c].clamp(0.0, 1.0))))
+    }
 }
 
-/// The seam of a rendered (linear) image, on its sRGB display values.
-pub fn seam(img: &Rgba) -> Seam {
-    seam_of(img.width, img.height, display(img))
+/// [`interior_spread`] of a rendered image (`width × height` linear RGBA values, straight alpha),
+/// on its sRGB display values.
+///
+/// # Panics
+/// If `rgba` holds fewer than `width * height * 4` values.
+pub fn spread(width: usize, height: usize, rgba: &[f32]) -> Seam {
+    assert!(
+        rgba.len() >= width * height * 4,
+        "{width}x{height} RGBA needs {} values",
+        width * height * 4
+    );
+    interior_spread(width, height, display(width, rgba))
+}
+
+/// The seam of a rendered image (`width × height` linear RGBA values, straight alpha), on its
+/// sRGB display values.
+///
+/// # Panics
+/// If `rgba` holds fewer than `width * height * 4` values.
+pub fn seam(width: usize, height: usize, rgba: &[f32]) -> Seam {
+    assert!(
+        rgba.len() >= width * height * 4,
+        "{width}x{height} RGBA needs {} values",
+        width * height * 4
+    );
+    seam_of(width, height, display(width, rgba))
 }
 
 /// The seam of an image file as stored (8-bit sRGB values), e.g. a texture input.
@@ -132,8 +163,8 @@ mod tests {
     /// The measure reproduces the figures `shared/data/README.md` states for the texture files.
     #[test]
     fn reproduces_the_data_readme_figures() {
-        let dir =
-            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/textures");
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/data/textures");
         for (file, h, v) in [
             ("marble_onyx003_ambientcg_1k.jpg", 1.12, 1.08),
             ("marble_veined_rock058_ambientcg_1k.jpg", 1.25, 1.41),
@@ -145,6 +176,19 @@ mod tests {
             assert!(
                 (s.horizontal - h).abs() < 0.006 && (s.vertical - v).abs() < 0.006,
                 "{file}: {s:?}, README says {h} / {v}"
+            );
+        }
+    }
+
+    /// The display encoding is the baker's own.
+    #[test]
+    fn srgb_encoding_matches_the_bakers() {
+        for i in 0..=1100 {
+            let v = i as f32 / 1000.0 - 0.05;
+            assert_eq!(
+                linear_to_srgb(v).to_bits(),
+                otbake::render::imageio::linear_to_srgb(v).to_bits(),
+                "{v}"
             );
         }
     }
@@ -169,5 +213,15 @@ mod tests {
         // Every interior pair of a ramp differs alike: the spread is 1.
         let sp = interior_spread(n, n, ramp);
         assert!((sp.horizontal - 1.0).abs() < 1e-9, "{sp:?}");
+        // The same ramp as a linear RGBA image: one value per display level.
+        let rgba: Vec<f32> = (0..n * n)
+            .flat_map(|i| {
+                let v = (i % n) as f32 / n as f32;
+                [v, v, v, 1.0]
+            })
+            .collect();
+        let s = seam(n, n, &rgba);
+        assert!(s.horizontal > 10.0 && s.vertical.is_nan(), "{s:?}");
+        assert!((spread(n, n, &rgba).vertical).is_nan());
     }
 }
