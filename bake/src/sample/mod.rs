@@ -6,8 +6,10 @@
 //! `i`), and point `i` depends only on `(seed, i)`: the output is the same for any thread count.
 
 mod grid;
-pub mod normal;
 mod sobol;
+
+/// The standard normal's functions, shared with the BRDF kernel (one copy, in `otbake-brdf`).
+pub use otbake_brdf::normal;
 
 pub use grid::importance_sample;
 pub use sobol::Sobol;

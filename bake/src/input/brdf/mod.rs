@@ -1,50 +1,8 @@
 //! Isotropic measured BRDFs as 3D densities over `(θi, θo, φd)` (paper §6.4): readers and writers
-//! ([`merl`], [`cornell`]), resampling to a grid ([`to_grid`]), run-time evaluation and importance
-//! sampling of a blend ([`crate::render::brdf::eval`]), and images ([`crate::render::brdf`]).
-//!
-//! # Domain
-//!
-//! An isotropic BRDF depends on the two polar angles and the azimuth difference
-//! `φd = φo − φi` only; with reciprocity `f(ωi, ωo) = f(ωo, ωi)` and isotropy `φd` and `−φd` give
-//! the same value, so `φd` is folded into `[0, π]`. The domain `(θi, θo, φd) ∈ [0, π/2]² × [0, π]`
-//! maps to the unit cube by `u = (θi / (π/2), θo / (π/2), φd / π)`: axis 0 = θi, axis 1 = θo,
-//! axis 2 = φd (axis 0 fastest in the grid buffers, as for every input; see [`crate::input`]).
-//! Both directions point away from the surface, so the mirror direction of `ωi` is at `φd = π`.
-//!
-//! # Measure and value formula
-//!
-//! A grid cell's mass is the BRDF's **luminance at the cell centre, without any Jacobian**:
-//! `mass_c = Y(f(θi, θo, φd))` with `Y = 0.2126 R + 0.7152 G + 0.0722 B`, `ratio_c = rgb / Y`
-//! (0 where `Y = 0`). The baked density `ρ(u)` is therefore a pdf over the unit cube in the
-//! `(θi, θo, φd)` parameter measure (uniform in angles), and `mean_mass = mean_c Y_c`. Because the
-//! cube has volume 1, the cell normalization is 1 and, for a blend with weights `w`,
-//!
-//! ```text
-//! f_rgb(ωi, ωo) = ρ_w(u) · Σ_k w_k mean_mass_k · ratio_w(u)     (= PointValue::color)
-//! f_Y(ωi, ωo)   = ρ_w(u) · Σ_k w_k mean_mass_k                  (= PointValue::mass)
-//! ```
-//!
-//! with `u = u(ωi, ωo)` as above; at weights `(1, 0, …)` this is the input grid's value smoothed
-//! by the query kernel (see [`crate::render::brdf::eval`] for the two kernels: density-adaptive by default, or fixed). Why no Jacobian: evaluation — the operation a renderer calls most — then
-//! never divides by `sin θ` or `cos θ`, which vanish at the pole and the horizon and would amplify
-//! the kernel estimate's noise there; the paper stores plain luminance too.
-//!
-//! # Importance sampling
-//!
-//! The blend's points (`Blend::sample`) follow `ρ_w`, i.e. `f_Y` in the angle measure; with the
-//! adaptive kernel (the default, [`crate::render::brdf::eval`]) a sample is point `i` plus noise of its kernel width,
-//! folded into the cube, which follows the kernel estimate `ρ_w` *exactly*. A sample is
-//! turned into a pair of directions by drawing `φi` uniformly in `[0, 2π)` and the sign of `φd`
-//! with probability 1/2 each. The joint density of `(ωi, ωo)` in the product of solid angles
-//! (`dω = sin θ dθ dφ`) is then
-//!
-//! ```text
-//! pdf(ωi, ωo) = ρ_w(u) · 4/π³ (θi, θo, φd → u) · 1/(2π) (φi) · 1/2 (sign) / (sin θi sin θo)
-//!             = ρ_w(u) / (π⁴ sin θi sin θo)
-//! ```
-//!
-//! so that `E[f(ωi, ωo) cos θo / pdf] = ∫∫ f cos θo dωi dωo` ([`crate::render::brdf::eval::BrdfBlend::sample`] returns
-//! the value and this pdf; the tests check the estimate against direct integration).
+//! ([`merl`], [`cornell`]) and resampling to a grid ([`to_grid`]). The domain, the unit cube, what a
+//! grid cell's mass is and how a blend is evaluated and sampled are documented once, in
+//! [`otbake_brdf`] (re-exported here as its domain functions and as [`crate::render::brdf::eval`]);
+//! images of blends are in [`crate::render::brdf`].
 
 // RGB and 3-vector loops index several arrays at once; indices read better than zips here.
 #![allow(clippy::needless_range_loop)]
@@ -56,13 +14,14 @@ pub mod merl;
 use crate::input::{Grid, InputError};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
+
+pub use otbake_brdf::domain::{
+    angles, direction, fold_phi, from_unit, luminance, to_unit, LUMINANCE,
+};
 use std::path::{Path, PathBuf};
 
 /// Default grid resolution per axis (the paper's 180³).
 pub const DEFAULT_RESOLUTION: usize = 180;
-
-/// Rec. 709 / sRGB luminance weights (the same as the image inputs').
-pub const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Why a BRDF file could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -81,60 +40,6 @@ pub enum BrdfError {
         line: usize,
         message: String,
     },
-}
-
-/// `(θi, θo, φd)` in radians → unit-cube coordinates (axis 0 = θi, 1 = θo, 2 = φd).
-pub fn to_unit(theta_i: f64, theta_o: f64, phi_d: f64) -> [f32; 3] {
-    [
-        (theta_i / FRAC_PI_2) as f32,
-        (theta_o / FRAC_PI_2) as f32,
-        (phi_d / PI) as f32,
-    ]
-}
-
-/// Unit-cube coordinates → `(θi, θo, φd)` in radians.
-pub fn from_unit(u: &[f32]) -> (f64, f64, f64) {
-    (
-        f64::from(u[0]) * FRAC_PI_2,
-        f64::from(u[1]) * FRAC_PI_2,
-        f64::from(u[2]) * PI,
-    )
-}
-
-/// Folds an azimuth difference into `[0, π]` (isotropy and reciprocity).
-pub fn fold_phi(phi: f64) -> f64 {
-    let d = phi.rem_euclid(2.0 * PI);
-    if d > PI {
-        2.0 * PI - d
-    } else {
-        d
-    }
-}
-
-/// Unit direction at polar angle `theta` and azimuth `phi` (z = normal).
-pub fn direction(theta: f64, phi: f64) -> [f64; 3] {
-    [
-        theta.sin() * phi.cos(),
-        theta.sin() * phi.sin(),
-        theta.cos(),
-    ]
-}
-
-/// `(θi, θo, φd)` of a pair of unit directions in the local frame (z = normal); `None` when either
-/// lies below the horizon.
-pub fn angles(wi: [f64; 3], wo: [f64; 3]) -> Option<(f64, f64, f64)> {
-    if wi[2] < 0.0 || wo[2] < 0.0 {
-        return None;
-    }
-    let ti = wi[2].clamp(-1.0, 1.0).acos();
-    let to = wo[2].clamp(-1.0, 1.0).acos();
-    let pd = fold_phi(wo[1].atan2(wo[0]) - wi[1].atan2(wi[0]));
-    Some((ti, to, pd))
-}
-
-/// Luminance of linear RGB.
-pub fn luminance(rgb: [f64; 3]) -> f64 {
-    LUMINANCE[0] * rgb[0] + LUMINANCE[1] * rgb[1] + LUMINANCE[2] * rgb[2]
 }
 
 /// Centre of cell `i` of `n` on `[0, extent]`.

@@ -1,7 +1,9 @@
 //! Images and exports of BRDF blends: a `θi = 45°` slice on the unit disk and a grid of spheres
 //! (paper Fig. 14), and MERL files. Every value is a runtime point query.
 
-pub mod eval;
+/// Evaluation and sampling of a blend of BRDF maps: the `otbake-brdf` crate, which the C ABI and the
+/// Python package share.
+pub use otbake_brdf as eval;
 
 use crate::input::brdf::merl::Merl;
 use crate::input::brdf::{direction, luminance};

@@ -1,34 +1,8 @@
-//! Run-time evaluation and importance sampling of a blend of BRDF maps (formulas in the module
-//! docs of [`crate::input::brdf`]). Everything goes through `otbake-runtime` point queries and samples,
-//! as a renderer's BSDF would.
-//!
-//! # Kernels
-//!
-//! A blend is reconstructed with one of two kernels ([`BrdfKernel`]):
-//!
-//! * **adaptive** (the default, [`DEFAULT_ADAPTIVE`]): every blended point carries a Gaussian as
-//!   wide as the blend's local spacing around it (`Blend::point_adaptive`), so a narrow specular
-//!   lobe keeps its height and a query costs about the same number of points wherever it lands.
-//!   The density is the *sample-point* estimate `ρ(u) = (1/n) Σ_i K_{σ_i}(u − y_i)`, made a density
-//!   of the cube by reflection at its faces (below), and [`BrdfBlend::sample`] draws exactly from
-//!   it: point `i`, plus noise from its own truncated Gaussian, folded back into the cube.
-//! * **fixed** (`σ` everywhere, `Blend::point`): the earlier reconstruction, kept for comparison
-//!   and for callers that want one width. The estimate near a face is divided by the kernel's
-//!   inside fraction ([`BrdfBlend::inside_fraction`]), and `sample` returns the blended point itself,
-//!   so its pdf (the smoothed density) matches the samples only approximately.
-//!
-//! # Faces (adaptive kernel)
-//!
-//! The cube's faces are where the density's domain ends: `φd = 0` and `φd = π` are folds of the
-//! azimuth circle (the density is symmetric about them), `θ = 0` and `θ = π/2` the pole and the
-//! horizon. A sample `u = y_i + σ_i z` that leaves the cube is reflected back (`−u`, or `2 − u`, per
-//! axis), so the estimate's density at `u` in the cube is the sum of the sample-point estimate at
-//! `u` and at its mirror images `−u_a`, `2 − u_a` (on every combination of axes): exactly
-//! the density the folded samples have, no mass lost at a face, and no factor ½ there. A sample
-//! that would need a second reflection (`u_a < −1` or `u_a > 2`, impossible unless a map holds
-//! points a whole cube outside) is returned as a failed sample (pdf 0, value 0).
+//! [`BrdfBlend`]: a blend of BRDF maps with its reconstruction kernel, evaluated, sampled and given
+//! its pdf through runtime point queries and samples (the crate docs give the formulas and kernels).
 
-use crate::input::brdf::{angles, direction, from_unit, to_unit};
+use crate::domain::{angles, direction, from_unit, to_unit};
+use crate::noise::{joint_pdf, reflect, truncated_normal_3d};
 use otbake_runtime::{AdaptiveKernel, Blend, Error, Kernel, Map, PointValue, Proxy};
 use std::f64::consts::PI;
 
@@ -240,7 +214,7 @@ impl<'a, 'm> BrdfBlend<'a, 'm> {
     /// estimates on bounded domains; approximate, since the runtime truncates to a ball, not a box).
     /// 1 for the adaptive kernel, which reflects instead.
     pub fn inside_fraction(&self, u: &[f32; 3]) -> f32 {
-        use crate::sample::normal::cdf;
+        use crate::normal::cdf;
         let BrdfKernel::Fixed(kernel) = self.kernel else {
             return 1.0;
         };
@@ -324,114 +298,5 @@ impl<'a, 'm> BrdfBlend<'a, 'm> {
             value: v.rgb,
             luminance: v.luminance,
         })
-    }
-}
-
-/// `v` in `[−1, 2]` reflected into `[0, 1]` (`−v` below 0, `2 − v` above 1); other values are
-/// clamped (they never reach a density: samples there fail, and angles map into the cube).
-fn reflect(v: f32) -> f32 {
-    let r = if v < 0.0 {
-        -v
-    } else if v > 1.0 {
-        2.0 - v
-    } else {
-        v
-    };
-    r.clamp(0.0, 1.0)
-}
-
-/// A draw of the standard 3D Gaussian truncated to the ball of radius 3 (the runtime's kernel)
-/// from three uniform numbers: a direction from the first two, the radius by inverting the
-/// truncated χ₃ distribution function `P(R <= r) = erf(r/√2) − √(2/π) r e^(−r²/2)` on `[0, 3]`
-/// with the third (bisection to full precision).
-pub fn truncated_normal_3d(xi: [f64; 3]) -> [f64; 3] {
-    use crate::sample::normal::{erfc, pdf};
-    let chi3 = |r: f64| 1.0 - erfc(r / std::f64::consts::SQRT_2) - 2.0 * r * pdf(r);
-    let target = xi[2].clamp(0.0, 1.0) * chi3(3.0);
-    let (mut lo, mut hi) = (0.0f64, 3.0f64);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if chi3(mid) < target {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let r = 0.5 * (lo + hi);
-    let cos_t = 1.0 - 2.0 * xi[0];
-    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let phi = 2.0 * PI * xi[1];
-    [r * sin_t * phi.cos(), r * sin_t * phi.sin(), r * cos_t]
-}
-
-/// `ρ / (π⁴ sin θi sin θo)` (0 where the Jacobian vanishes).
-pub fn joint_pdf(density: f32, theta_i: f64, theta_o: f64) -> f64 {
-    let j = PI.powi(4) * theta_i.sin() * theta_o.sin();
-    if j > 0.0 {
-        f64::from(density) / j
-    } else {
-        0.0
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn reflection_folds_one_period_into_the_cube() {
-        for (v, want) in [
-            (0.25f32, 0.25f32),
-            (-0.25, 0.25),
-            (1.25, 0.75),
-            (0.0, 0.0),
-            (1.0, 1.0),
-            (-1.0, 1.0),
-            (2.0, 0.0),
-        ] {
-            assert_eq!(reflect(v), want, "{v}");
-        }
-    }
-
-    /// The noise is the 3D standard normal truncated to radius 3: radii follow the truncated χ₃
-    /// distribution (checked at 12 radii against 20000 stratified draws) and directions are
-    /// uniform (mean near 0, equal second moments).
-    #[test]
-    fn noise_is_the_truncated_normal() {
-        use crate::sample::normal::{erfc, pdf};
-        let chi3 = |r: f64| 1.0 - erfc(r / std::f64::consts::SQRT_2) - 2.0 * r * pdf(r);
-        let m = 20_000;
-        let frac = |x: f64| x - x.floor();
-        let draws: Vec<[f64; 3]> = (0..m)
-            .map(|j| {
-                let j = j as f64;
-                truncated_normal_3d([
-                    frac(j * 0.754_877_666),
-                    frac(j * 0.569_840_291),
-                    (j + 0.5) / m as f64,
-                ])
-            })
-            .collect();
-        let radius = |z: &[f64; 3]| (z[0] * z[0] + z[1] * z[1] + z[2] * z[2]).sqrt();
-        assert!(draws.iter().all(|z| radius(z) <= 3.0));
-        for k in 1..=12 {
-            let r = 0.25 * k as f64;
-            let below = draws.iter().filter(|z| radius(z) <= r).count() as f64 / m as f64;
-            let want = chi3(r) / chi3(3.0);
-            assert!(
-                (below - want).abs() < 1e-3,
-                "P(R <= {r}) = {below}, want {want}"
-            );
-        }
-        for a in 0..3 {
-            let mean = draws.iter().map(|z| z[a]).sum::<f64>() / m as f64;
-            let second = draws.iter().map(|z| z[a] * z[a]).sum::<f64>() / m as f64;
-            assert!(mean.abs() < 0.02, "axis {a}: mean {mean}");
-            let all = draws.iter().map(|z| radius(z).powi(2)).sum::<f64>() / m as f64;
-            assert!(
-                (second / (all / 3.0) - 1.0).abs() < 0.03,
-                "axis {a}: {second}"
-            );
-        }
     }
 }
