@@ -204,3 +204,34 @@ pub(crate) unsafe fn handle<'a, H: Handle>(
     // SAFETY: as above, and the magic says it is an `H`.
     Ok(unsafe { &*ptr })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::ffi::CStr;
+
+    #[test]
+    fn a_panic_becomes_a_status() {
+        let s = entry("otbake_test", || panic!("boom"));
+        assert_eq!(s, OtbakeStatus::Internal);
+        // SAFETY: this thread's NUL-terminated last-error text.
+        let text = unsafe { CStr::from_ptr(crate::status::otbake_last_error()) };
+        assert!(
+            text.to_str().unwrap().starts_with("otbake_test: "),
+            "{text:?}"
+        );
+    }
+
+    #[test]
+    fn long_messages_are_cut_whole_characters() {
+        let what: &'static str = "ünïcödé ".repeat(100).leak();
+        let s = entry("otbake_test", || {
+            Err(Failure::arg(OtbakeStatus::BadCount, "x", what))
+        });
+        assert_eq!(s, OtbakeStatus::BadCount);
+        // SAFETY: as above.
+        let text = unsafe { CStr::from_ptr(crate::status::otbake_last_error()) };
+        let t = text.to_str().expect("cut at a character boundary");
+        assert!(t.len() < 512 && t.len() > 400, "{}", t.len());
+    }
+}
