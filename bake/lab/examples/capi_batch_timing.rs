@@ -10,6 +10,11 @@
 //! status and panic guard. Repetitions alternate which batch goes first; the program prints the
 //! median wall and thread-CPU time of each and their ratios (C / Rust), and checks that both
 //! batches give the same bits.
+//!
+//! With a third argument `rust` or `c` it runs only that batch REPEATS times and times nothing, for
+//! instruction counts that load does not move: per batch, half the difference of two callgrind runs
+//! (`valgrind --tool=callgrind --callgrind-out-file=/dev/null target/release/examples/capi_batch_timing
+//! MANIFEST N c` for N = 1 and 3; likewise `rust`).
 
 use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
@@ -138,6 +143,23 @@ fn main() -> anyhow::Result<()> {
         anyhow::ensure!(s == OtbakeStatus::Ok, "otbake_blend_point_batch: {s:?}");
         Ok(())
     };
+    match args.get(3).map(String::as_str) {
+        None => {}
+        Some(only @ ("rust" | "c")) => {
+            for _ in 0..repeats {
+                if only == "rust" {
+                    rust_batch()?
+                } else {
+                    c_batch()?
+                }
+            }
+            println!("ran the {only} batch {repeats} times");
+            // SAFETY: no batch uses the blend any more; the bytes are still alive.
+            unsafe { otbake_blend_free(c) };
+            return Ok(());
+        }
+        Some(other) => anyhow::bail!("the third argument is `rust` or `c`, not `{other}`"),
+    }
     // One warm-up each: pages of the archives and buffers are resident before timing.
     rust_batch()?;
     c_batch()?;
@@ -183,11 +205,15 @@ fn main() -> anyhow::Result<()> {
         ms(&c_wall),
         ms(&c_cpu)
     );
+    let mut sorted = pair.clone();
+    sorted.sort_by(f64::total_cmp);
     println!(
-        "C / Rust: {:.4} (median wall), {:.4} (median thread CPU), {:.4} (median of per-pair CPU ratios); same bits: yes",
+        "C / Rust: {:.4} (median wall), {:.4} (median thread CPU), {:.4} (median of per-pair CPU ratios; range {:.4}–{:.4}); same bits: yes",
         median(&c_wall) / median(&rust_wall),
         median(&c_cpu) / median(&rust_cpu),
-        median(&pair)
+        median(&pair),
+        sorted.first().copied().unwrap_or(f64::NAN),
+        sorted.last().copied().unwrap_or(f64::NAN),
     );
     // SAFETY: no batch uses the blend any more; the bytes are still alive.
     unsafe { otbake_blend_free(c) };

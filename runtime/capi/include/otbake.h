@@ -469,6 +469,9 @@ OtbakeStatus otbake_brdf_new_adaptive(const OtbakeProxy *proxy,
  * [`otbake_brdf_new_adaptive`] with the fixed Gaussian kernel of width `sigma` (boundary
  * renormalization, samples without noise).
  *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * As [`otbake_brdf_new_adaptive`].
@@ -481,6 +484,9 @@ OtbakeStatus otbake_brdf_new_fixed(const OtbakeProxy *proxy,
 
 /**
  * What the BRDF blend answers (dim is 3), stored at `*info`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -506,6 +512,9 @@ void otbake_brdf_free(OtbakeBrdf *brdf);
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
  * `BAD_COORDINATE`.
  *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `brdf` is a live BRDF handle; `weights` points at `k` floats, `wi` and `wo` at 3 doubles each,
@@ -521,6 +530,9 @@ OtbakeStatus otbake_brdf_eval(const OtbakeBrdf *brdf,
 /**
  * [`otbake_brdf_eval`] for `count` direction pairs: `wi` and `wo` hold `3 · count` doubles,
  * `rgb` receives `3 · count` floats.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -540,6 +552,9 @@ OtbakeStatus otbake_brdf_eval_batch(const OtbakeBrdf *brdf,
  * The joint pdf of `otbake_brdf_sample` at `(wi, wo)` (product of solid angles), stored at
  * `*pdf`; 0 below the horizon.
  *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * As [`otbake_brdf_eval`], with `pdf` pointing at one writable double.
@@ -554,6 +569,9 @@ OtbakeStatus otbake_brdf_pdf(const OtbakeBrdf *brdf,
 /**
  * [`otbake_brdf_pdf`] for `count` direction pairs (`3 · count` doubles each), pdfs to
  * `pdf[0..count]`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -572,6 +590,9 @@ OtbakeStatus otbake_brdf_pdf_batch(const OtbakeBrdf *brdf,
  * `f`, `f_Y` and the density at the angles `(θi, θo, φd)` (radians; `φd` in `[0, π]`) for
  * `weights[0..k]`, stored at `*out`. `angles` holds `3 · count` doubles, `out` receives `count`
  * values (`count = 1` for a single evaluation).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -594,6 +615,9 @@ OtbakeStatus otbake_brdf_eval_angles_batch(const OtbakeBrdf *brdf,
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
  * `INDEX_OUT_OF_RANGE`.
  *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `brdf` is a live BRDF handle; `weights` points at `k` floats, `xi` at 5 doubles, `out` at one
@@ -609,6 +633,9 @@ OtbakeStatus otbake_brdf_sample(const OtbakeBrdf *brdf,
 /**
  * [`otbake_brdf_sample`] for `count` indices `indices[0..count]` with `5 · count` uniform numbers
  * `xi`, samples to `out[0..count]`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -754,6 +781,9 @@ void otbake_blend_free(OtbakeBlend *blend);
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (k or dim not the blend's),
  * `BAD_WEIGHTS`, `BAD_COORDINATE`, `BAD_KERNEL`.
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `blend` is a live blend handle; `weights` points at `k` floats, `point` at `dim` floats, `out`
@@ -770,6 +800,9 @@ OtbakeStatus otbake_blend_point(const OtbakeBlend *blend,
 /**
  * [`otbake_blend_point`] for `count` points: `points` holds `count · dim` floats, results go to
  * `out[0 .. count]` (batch conventions at the top of otbake.h).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -792,6 +825,9 @@ OtbakeStatus otbake_blend_point_batch(const OtbakeBlend *blend,
  *
  * Errors: those of [`otbake_blend_point`], and `MISSING_ATTRIBUTE` if a map stores no spacings.
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * As [`otbake_blend_point`].
@@ -806,6 +842,9 @@ OtbakeStatus otbake_blend_point_adaptive(const OtbakeBlend *blend,
 
 /**
  * [`otbake_blend_point_adaptive`] for `count` points (batch conventions at the top of otbake.h).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -828,6 +867,9 @@ OtbakeStatus otbake_blend_point_adaptive_batch(const OtbakeBlend *blend,
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`, `BAD_KERNEL`,
  * `MISSING_ATTRIBUTE`, `INDEX_OUT_OF_RANGE`.
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `blend` is a live blend handle; `weights` points at `k` floats, `sigma` at one writable float.
@@ -842,6 +884,9 @@ OtbakeStatus otbake_blend_bandwidth(const OtbakeBlend *blend,
 /**
  * [`otbake_blend_bandwidth`] for the `count` point indices `indices[0..count]`, widths to
  * `sigmas[0..count]` (batch conventions at the top of otbake.h).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -864,6 +909,9 @@ OtbakeStatus otbake_blend_bandwidth_batch(const OtbakeBlend *blend,
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
  * `BAD_COORDINATE`, `MISSING_ATTRIBUTE` (a colored map without node color sums).
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `blend` is a live blend handle; `weights` points at `k` floats, `lo` and `hi` at `dim` floats
@@ -880,6 +928,9 @@ OtbakeStatus otbake_blend_range(const OtbakeBlend *blend,
 /**
  * [`otbake_blend_range`] for `count` boxes: `lo` and `hi` hold `count · dim` floats each
  * (batch conventions at the top of otbake.h).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -903,6 +954,9 @@ OtbakeStatus otbake_blend_range_batch(const OtbakeBlend *blend,
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
  * `INDEX_OUT_OF_RANGE`.
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `blend` is a live blend handle; `weights` points at `k` floats, `out` at one writable
@@ -917,6 +971,9 @@ OtbakeStatus otbake_blend_sample(const OtbakeBlend *blend,
 /**
  * [`otbake_blend_sample`] for the `count` indices `indices[0..count]` (batch conventions at the top
  * of otbake.h).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -937,6 +994,9 @@ OtbakeStatus otbake_blend_sample_batch(const OtbakeBlend *blend,
  *
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`.
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `blend` is a live blend handle; `weights` points at `k` floats, `mean_mass` at one writable
@@ -954,6 +1014,9 @@ OtbakeStatus otbake_blend_mean_mass(const OtbakeBlend *blend,
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (dim not the blend's),
  * `BAD_REGION` (a resolution of 0, or a cell count that overflows).
  *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
  * # Safety
  *
  * `blend` is a live blend handle; `res` points at `dim` values, `cells` at one writable size.
@@ -968,6 +1031,9 @@ OtbakeStatus otbake_blend_grid_cells(const OtbakeBlend *blend,
  * `4 · cells` floats.
  *
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_REGION`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -986,6 +1052,9 @@ OtbakeStatus otbake_blend_region_cells(const OtbakeBlend *blend,
  * Errors: `NULL_POINTER` (density), `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (k, dim, or a buffer
  * shorter or longer than `otbake_blend_grid_cells` says), `BAD_WEIGHTS`, `BAD_KERNEL`,
  * `BAD_REGION`, `OVERLAP` (density and color overlap).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *
@@ -1013,6 +1082,9 @@ OtbakeStatus otbake_blend_splat(const OtbakeBlend *blend,
  *
  * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (k, or `rgba_len` other than
  * `4 · otbake_blend_region_cells`), `BAD_WEIGHTS`, `BAD_KERNEL`, `BAD_REGION`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
  *
  * # Safety
  *

@@ -183,6 +183,9 @@ pub unsafe extern "C" fn otbake_brdf_new_adaptive(
 /// [`otbake_brdf_new_adaptive`] with the fixed Gaussian kernel of width `sigma` (boundary
 /// renormalization, samples without noise).
 ///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// As [`otbake_brdf_new_adaptive`].
@@ -203,6 +206,9 @@ pub unsafe extern "C" fn otbake_brdf_new_fixed(
 }
 
 /// What the BRDF blend answers (dim is 3), stored at `*info`.
+///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -249,6 +255,9 @@ pub unsafe extern "C" fn otbake_brdf_free(brdf: *mut OtbakeBrdf) {
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
 /// `BAD_COORDINATE`.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `brdf` is a live BRDF handle; `weights` points at `k` floats, `wi` and `wo` at 3 doubles each,
@@ -268,6 +277,9 @@ pub unsafe extern "C" fn otbake_brdf_eval(
 
 /// [`otbake_brdf_eval`] for `count` direction pairs: `wi` and `wo` hold `3 · count` doubles,
 /// `rgb` receives `3 · count` floats.
+///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -343,6 +355,9 @@ unsafe fn otbake_brdf_eval_batch_impl(
 /// The joint pdf of `otbake_brdf_sample` at `(wi, wo)` (product of solid angles), stored at
 /// `*pdf`; 0 below the horizon.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// As [`otbake_brdf_eval`], with `pdf` pointing at one writable double.
@@ -361,6 +376,9 @@ pub unsafe extern "C" fn otbake_brdf_pdf(
 
 /// [`otbake_brdf_pdf`] for `count` direction pairs (`3 · count` doubles each), pdfs to
 /// `pdf[0..count]`.
+///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -434,6 +452,9 @@ unsafe fn pdf_impl(
 /// `weights[0..k]`, stored at `*out`. `angles` holds `3 · count` doubles, `out` receives `count`
 /// values (`count = 1` for a single evaluation).
 ///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `brdf` is a live BRDF handle; `weights` as the batch conventions say, `angles` points at
@@ -470,6 +491,9 @@ pub unsafe extern "C" fn otbake_brdf_eval_angles_batch(
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
 /// `INDEX_OUT_OF_RANGE`.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `brdf` is a live BRDF handle; `weights` points at `k` floats, `xi` at 5 doubles, `out` at one
@@ -501,6 +525,9 @@ pub unsafe extern "C" fn otbake_brdf_sample(
 
 /// [`otbake_brdf_sample`] for `count` indices `indices[0..count]` with `5 · count` uniform numbers
 /// `xi`, samples to `out[0..count]`.
+///
+/// Thread safety: any thread, concurrently with every other call on the same BRDF blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///

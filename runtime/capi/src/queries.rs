@@ -25,6 +25,9 @@ use otbake_runtime::Kernel;
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (k or dim not the blend's),
 /// `BAD_WEIGHTS`, `BAD_COORDINATE`, `BAD_KERNEL`.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `blend` is a live blend handle; `weights` points at `k` floats, `point` at `dim` floats, `out`
@@ -53,6 +56,9 @@ pub unsafe extern "C" fn otbake_blend_point(
 
 /// [`otbake_blend_point`] for `count` points: `points` holds `count · dim` floats, results go to
 /// `out[0 .. count]` (batch conventions at the top of otbake.h).
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -92,6 +98,9 @@ pub unsafe extern "C" fn otbake_blend_point_batch(
 ///
 /// Errors: those of [`otbake_blend_point`], and `MISSING_ATTRIBUTE` if a map stores no spacings.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// As [`otbake_blend_point`].
@@ -118,6 +127,9 @@ pub unsafe extern "C" fn otbake_blend_point_adaptive(
 }
 
 /// [`otbake_blend_point_adaptive`] for `count` points (batch conventions at the top of otbake.h).
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -159,6 +171,9 @@ pub unsafe extern "C" fn otbake_blend_point_adaptive_batch(
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`, `BAD_KERNEL`,
 /// `MISSING_ATTRIBUTE`, `INDEX_OUT_OF_RANGE`.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `blend` is a live blend handle; `weights` points at `k` floats, `sigma` at one writable float.
@@ -185,6 +200,9 @@ pub unsafe extern "C" fn otbake_blend_bandwidth(
 
 /// [`otbake_blend_bandwidth`] for the `count` point indices `indices[0..count]`, widths to
 /// `sigmas[0..count]` (batch conventions at the top of otbake.h).
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -223,6 +241,9 @@ pub unsafe extern "C" fn otbake_blend_bandwidth_batch(
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
 /// `BAD_COORDINATE`, `MISSING_ATTRIBUTE` (a colored map without node color sums).
 ///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `blend` is a live blend handle; `weights` points at `k` floats, `lo` and `hi` at `dim` floats
@@ -253,6 +274,9 @@ pub unsafe extern "C" fn otbake_blend_range(
 
 /// [`otbake_blend_range`] for `count` boxes: `lo` and `hi` hold `count · dim` floats each
 /// (batch conventions at the top of otbake.h).
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -297,6 +321,9 @@ pub unsafe extern "C" fn otbake_blend_range_batch(
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`,
 /// `INDEX_OUT_OF_RANGE`.
 ///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `blend` is a live blend handle; `weights` points at `k` floats, `out` at one writable
@@ -323,6 +350,9 @@ pub unsafe extern "C" fn otbake_blend_sample(
 
 /// [`otbake_blend_sample`] for the `count` indices `indices[0..count]` (batch conventions at the top
 /// of otbake.h).
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -357,6 +387,9 @@ pub unsafe extern "C" fn otbake_blend_sample_batch(
 /// value's `mass` is its `density` times this.
 ///
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_WEIGHTS`.
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///

@@ -42,6 +42,9 @@ unsafe fn resolution(
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (dim not the blend's),
 /// `BAD_REGION` (a resolution of 0, or a cell count that overflows).
 ///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
+///
 /// # Safety
 ///
 /// `blend` is a live blend handle; `res` points at `dim` values, `cells` at one writable size.
@@ -68,6 +71,9 @@ pub unsafe extern "C" fn otbake_blend_grid_cells(
 /// `4 · cells` floats.
 ///
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_REGION`.
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -96,6 +102,9 @@ pub unsafe extern "C" fn otbake_blend_region_cells(
 /// Errors: `NULL_POINTER` (density), `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (k, dim, or a buffer
 /// shorter or longer than `otbake_blend_grid_cells` says), `BAD_WEIGHTS`, `BAD_KERNEL`,
 /// `BAD_REGION`, `OVERLAP` (density and color overlap).
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
@@ -162,6 +171,9 @@ pub unsafe extern "C" fn otbake_blend_splat(
 ///
 /// Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (k, or `rgba_len` other than
 /// `4 · otbake_blend_region_cells`), `BAD_WEIGHTS`, `BAD_KERNEL`, `BAD_REGION`.
+///
+/// Thread safety: any thread, concurrently with every other call on the same blend except
+/// its `_free` (the handle is immutable); the call writes only its own outputs.
 ///
 /// # Safety
 ///
