@@ -1,5 +1,6 @@
 //! `otbake plan`: the bake as a build graph of hermetic `bake-one` actions, for Ninja locally or a
-//! remote-execution system (Bazel, Buck2) at scale; the Bazel BUILD file is [`bazel`](super::bazel).
+//! remote-execution system (Bazel, Buck2) at scale; the Bazel BUILD file is
+//! [`super::bazel`].
 //!
 //! Each action declares its inputs (the manifest, the input file — for a mesh under `fit = "common"`
 //! every mesh file —, the proxy archive for maps, and for maps of a manifest whose proxy is an input

@@ -26,7 +26,7 @@ fn nginx_exe() -> PathBuf {
     found.unwrap_or_else(|| {
         panic!(
             "nginx not found: these tests need Debian's nginx-light (`apt-get install -y nginx-light`); \
-             `.ci/bazel` installs it and runs them with `cargo test -p otbake-tests --test remote_nginx -- --ignored`"
+             `.ci/bazel` installs it and runs them with `cargo test --workspace --test remote_nginx -- --ignored`"
         )
     })
 }
