@@ -23,7 +23,7 @@ pub enum Command {
     /// Hermetic single-product bake for build systems: reads only the manifest, the product's inputs
     /// and the proxy archive; writes only OUTPUT (untouched if already current).
     BakeOne(bake::BakeOneArgs),
-    /// Print the whole bake as a build graph of `bake-one` actions (Ninja file or JSON).
+    /// Print the whole bake as a build graph of `bake-one` actions (Ninja file, JSON or Bazel BUILD).
     Plan(bake::PlanArgs),
     /// Compress an archive with zstd for storage or transfer (the runtime reads uncompressed bytes).
     Pack(bake::PackArgs),

@@ -4,9 +4,12 @@ use super::scene::{Open, Scene, Show};
 use anyhow::{bail, Context, Result};
 use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake_one as bake_product, Action};
+use otbake::pipeline::bazel::{BazelLabels, DEFAULT_OTBAKE, DEFAULT_RULES};
 use otbake::pipeline::inspect::{describe, validate};
-use otbake::pipeline::plan::{render as render_plan, Format};
+use otbake::pipeline::plan::{render as render_plan, Format, PlanOptions};
+use otbake::pipeline::remote::{RemoteCache, RemoteConfig, DEFAULT_TIMEOUT_SECS};
 use std::path::PathBuf;
+use std::time::Duration;
 
 #[derive(clap::Args)]
 pub struct BakeArgs {
@@ -22,13 +25,36 @@ pub struct BakeArgs {
     /// Store directory shared between bakes (default: OUTPUT_DIR/.otbake).
     #[arg(long, env = "OTBAKE_CACHE_DIR")]
     cache_dir: Option<PathBuf>,
+    /// A Bazel HTTP cache (http://HOST:PORT/) shared with other machines: products missing here
+    /// are fetched from it (verified), products baked here are uploaded. A server that is down,
+    /// slow or failing never fails the bake.
+    #[arg(long, env = "OTBAKE_REMOTE_CACHE", value_name = "URL")]
+    remote_cache: Option<String>,
+    /// Seconds before a request to the remote cache gives up (and the cache is off for the bake).
+    #[arg(long, value_name = "SECONDS", default_value_t = DEFAULT_TIMEOUT_SECS, value_parser = clap::value_parser!(u64).range(1..))]
+    remote_timeout: u64,
+    /// Read the remote cache only: upload nothing.
+    #[arg(long)]
+    remote_no_upload: bool,
 }
 
 /// `otbake bake`: each manifest in turn, stopping at the first that fails.
 pub fn bake(args: BakeArgs) -> Result<()> {
+    // An empty OTBAKE_REMOTE_CACHE means none, as unset.
+    let remote = match args.remote_cache.as_deref().filter(|u| !u.is_empty()) {
+        Some(url) => Some(RemoteCache::new(
+            url,
+            RemoteConfig {
+                timeout: Duration::from_secs(args.remote_timeout),
+                upload: !args.remote_no_upload,
+            },
+        )?),
+        None => None,
+    };
     let open = Open {
         force: args.force,
         cache_dir: args.cache_dir.as_deref(),
+        remote: remote.as_ref(),
         show: Show {
             lines: !args.json,
             json: args.json,
@@ -57,7 +83,8 @@ pub struct BakeOneArgs {
 
 /// `otbake bake-one`: one product, hermetically.
 pub fn bake_one(args: BakeOneArgs) -> Result<()> {
-    let m = Manifest::load(&args.manifest)?;
+    // Only this product's files need exist: a sandbox shows an action its declared inputs only.
+    let m = Manifest::load_for_product(&args.manifest, &args.product)?;
     let product = &args.product;
     let action = if product == "proxy" {
         Action::Proxy
@@ -81,13 +108,27 @@ pub struct PlanArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Ninja)]
     format: Format,
+    /// Bazel: the label of the otbake binary the actions run (a file target or any executable).
+    #[arg(long, default_value = DEFAULT_OTBAKE)]
+    bazel_otbake: String,
+    /// Bazel: the label of the rules file (`bake/bazel/otbake.bzl`).
+    #[arg(long, default_value = DEFAULT_RULES)]
+    bazel_rules: String,
 }
 
 /// `otbake plan`: the bake as a build graph on stdout.
 pub fn plan(args: PlanArgs) -> Result<()> {
     let m = Manifest::load(&args.manifest)?;
     let exe = std::env::current_exe().context("cannot locate the otbake executable")?;
-    print!("{}", render_plan(&m, &exe, args.format)?);
+    let opts = PlanOptions {
+        otbake: &exe,
+        format: args.format,
+        bazel: BazelLabels {
+            rules: args.bazel_rules,
+            otbake: args.bazel_otbake,
+        },
+    };
+    print!("{}", render_plan(&m, &opts)?);
     Ok(())
 }
 

@@ -7,6 +7,7 @@
 use super::progress::Progress;
 use anyhow::{bail, Result};
 use otbake::pipeline::bake::Event;
+use otbake::pipeline::remote::RemoteCache;
 use otbake::{bake, Archives, BakeOptions, Manifest, Status};
 use otbake_runtime::{Map, Proxy};
 use std::path::Path;
@@ -28,6 +29,8 @@ pub struct Open<'a> {
     pub force: bool,
     /// Store directory (default: OUTPUT_DIR/.otbake).
     pub cache_dir: Option<&'a Path>,
+    /// A remote cache shared with other machines.
+    pub remote: Option<&'a RemoteCache>,
     /// What the bake prints.
     pub show: Show,
 }
@@ -62,11 +65,26 @@ impl Scene {
                 force: open.force,
                 store: open.cache_dir,
                 on_event: Some(&on_event),
+                remote: open.remote,
             },
         )?;
         progress.finish();
+        let remote = open.remote.map(RemoteCache::take_summary);
+        if let Some(r) = &remote {
+            // What the server did goes to stderr even with --json: a failing cache is news.
+            if open.show.lines || !r.notes.is_empty() {
+                eprintln!("{}", r.line());
+            }
+            for note in &r.notes {
+                eprintln!("  {note}");
+            }
+        }
         if open.show.json {
-            println!("{}", report.to_json());
+            let mut json = report.to_value();
+            if let Some(r) = &remote {
+                json["remote"] = r.to_value();
+            }
+            println!("{json}");
         }
         let failed: Vec<_> = report
             .products

@@ -4,7 +4,7 @@
 use super::error::Locator;
 use super::options::Sections;
 use super::raw::{RawInput, RawWrap};
-use super::{InputSpec, ManifestError};
+use super::{FileCheck, InputSpec, ManifestError};
 use crate::input::mesh::voxelize::Fit;
 use crate::input::{DensityChannel, InputKind, LoadOptions};
 use otbake_formats::Wrap;
@@ -16,6 +16,7 @@ pub(super) fn inputs(
     base: &Path,
     raw_inputs: &[RawInput],
     sections: &Sections,
+    check: FileCheck<'_>,
 ) -> Result<Vec<InputSpec>, ManifestError> {
     let Sections {
         options,
@@ -23,7 +24,7 @@ pub(super) fn inputs(
     } = sections;
     let mut inputs = Vec::new();
     for input in raw_inputs {
-        let spec = one_input(loc, base, input, &inputs, raw_inputs, options)?;
+        let spec = one_input(loc, base, input, &inputs, raw_inputs, options, check)?;
         inputs.push(spec);
     }
     if *common_fit {
@@ -49,6 +50,7 @@ fn one_input(
     inputs: &[InputSpec],
     raw_inputs: &[RawInput],
     options: &LoadOptions,
+    check: FileCheck<'_>,
 ) -> Result<InputSpec, ManifestError> {
     let name = input.name.get_ref();
     let valid = !name.is_empty()
@@ -100,7 +102,7 @@ fn one_input(
             }
         }
     }
-    if !resolved.is_file() {
+    if check.wants(name) && !resolved.is_file() {
         return Err(loc.at(
             Some(input.path.span()),
             format!(

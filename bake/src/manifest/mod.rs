@@ -121,13 +121,17 @@ impl Manifest {
 
     /// Reads and validates a manifest file.
     pub fn load(path: &Path) -> Result<Self, ManifestError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ManifestError {
-            file: path.to_path_buf(),
-            line: 0,
-            column: 0,
-            message: format!("cannot read the manifest: {e}; check the path"),
-        })?;
-        Self::parse(path, &text)
+        Self::parse(path, &read_manifest(path)?)
+    }
+
+    /// Reads and validates a manifest file for a build-system action that makes one product
+    /// (`proxy` or an input's name): like [`Manifest::load`], except that of the input files only
+    /// `product`'s own must exist now. A sandboxed action (Bazel's `linux-sandbox`) sees only its
+    /// declared inputs, and a map's action must not depend on the other inputs' files, or editing
+    /// one input would rerun every map. Any other file the product does read (an input proxy's
+    /// file, the meshes of a common fit) is read by the bake, which names it if it is missing.
+    pub fn load_for_product(path: &Path, product: &str) -> Result<Self, ManifestError> {
+        Self::parse_checking(path, &read_manifest(path)?, FileCheck::Only(product))
     }
 
     /// Validates manifest `text` as if read from `path` (paths resolve relative to its directory).
@@ -135,6 +139,15 @@ impl Manifest {
     /// Sections are validated in a fixed order (output, the grid options of `[brdf]`, `[mesh]` and
     /// `[volume]`, inputs, proxy, solver, storage), so the first error reported is always the same.
     pub fn parse(path: &Path, text: &str) -> Result<Self, ManifestError> {
+        Self::parse_checking(path, text, FileCheck::Every)
+    }
+
+    /// [`Manifest::parse`], checking that the input files `check` names exist.
+    fn parse_checking(
+        path: &Path,
+        text: &str,
+        check: FileCheck<'_>,
+    ) -> Result<Self, ManifestError> {
         let loc = Locator { file: path, text };
         let raw: RawManifest = toml::from_str(text).map_err(|e| loc.toml(e))?;
         let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
@@ -152,7 +165,7 @@ impl Manifest {
             return Err(loc.at(None, "no [[input]] tables: add at least one input".into()));
         }
         let sections = options::sections(&loc, &raw)?;
-        let inputs = inputs::inputs(&loc, &base, &raw.inputs, &sections)?;
+        let inputs = inputs::inputs(&loc, &base, &raw.inputs, &sections, check)?;
         let proxy = proxy::proxy(&loc, &raw.proxy, &inputs)?;
         let periodic = inputs.first().is_some_and(|i| i.wrap == Wrap::Periodic);
         let solver = solver::solver(&loc, &raw.solver, periodic)?;
@@ -167,4 +180,33 @@ impl Manifest {
             storage,
         })
     }
+}
+
+/// Which input files parsing checks for existence.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum FileCheck<'a> {
+    /// Every input's file (a bake reads them all).
+    Every,
+    /// Only the file of the input of this name (a build-system action of one product).
+    Only(&'a str),
+}
+
+impl FileCheck<'_> {
+    /// Whether input `name`'s file must exist.
+    fn wants(self, name: &str) -> bool {
+        match self {
+            FileCheck::Every => true,
+            FileCheck::Only(product) => product == name,
+        }
+    }
+}
+
+/// The manifest's text, or an error naming the file.
+fn read_manifest(path: &Path) -> Result<String, ManifestError> {
+    std::fs::read_to_string(path).map_err(|e| ManifestError {
+        file: path.to_path_buf(),
+        line: 0,
+        column: 0,
+        message: format!("cannot read the manifest: {e}; check the path"),
+    })
 }

@@ -17,6 +17,7 @@ use crate::pipeline::archive::ProxyData;
 use crate::pipeline::build::{build_map, build_proxy, describe_proxy, load_input};
 use crate::pipeline::error::BakeError;
 use crate::pipeline::key::{map_key, proxy_key};
+use crate::pipeline::remote::RemoteCache;
 use crate::pipeline::stat::StatIndex;
 use crate::pipeline::store::{self, Store};
 use otbake_formats::ArchiveKind;
@@ -76,6 +77,11 @@ impl BakeReport {
 
     /// The report as JSON: `{"products": [{"name", "path", "status", "seconds", "detail"}]}`.
     pub fn to_json(&self) -> String {
+        self.to_value().to_string()
+    }
+
+    /// The report as a JSON value, for callers that add to it ([`to_json`](Self::to_json)'s form).
+    pub fn to_value(&self) -> serde_json::Value {
         let products: Vec<_> = self
             .products
             .iter()
@@ -89,7 +95,7 @@ impl BakeReport {
                 })
             })
             .collect();
-        serde_json::json!({ "products": products }).to_string()
+        serde_json::json!({ "products": products })
     }
 }
 
@@ -114,6 +120,9 @@ pub struct BakeOptions<'a> {
     pub store: Option<&'a Path>,
     /// Called on progress events (from the calling thread).
     pub on_event: Option<&'a dyn Fn(&Event<'_>)>,
+    /// A shared HTTP cache (Bazel's protocol) asked for products missing locally, and given the
+    /// products baked here; its [`summary`](RemoteCache::summary) says what it did.
+    pub remote: Option<&'a RemoteCache>,
 }
 
 /// The dimension shared by all inputs.
@@ -137,6 +146,32 @@ enum Current {
     OnDisk,
     /// The store holds it.
     Stored(AlignedVec<16>),
+    /// The remote cache gave it (verified).
+    Remote(AlignedVec<16>),
+}
+
+impl Current {
+    /// Puts a product that is not on disk there (and a remote one in the store); says from where.
+    fn restore(
+        self,
+        path: &Path,
+        key: &[u8; 32],
+        store: &Store,
+        index: &mut StatIndex,
+    ) -> Result<String, BakeError> {
+        let (bytes, detail) = match self {
+            Current::OnDisk => return Ok("current".into()),
+            Current::Stored(bytes) => (bytes, "restored from the store"),
+            Current::Remote(bytes) => {
+                // The next bake finds it locally.
+                store.put(key, &bytes)?;
+                (bytes, "restored from the remote cache")
+            }
+        };
+        fsio::write_atomic(path, &bytes)?;
+        index.record(path, *key);
+        Ok(detail.into())
+    }
 }
 
 /// Whether `path` holds (or the store has) the archive of `key`.
@@ -146,6 +181,7 @@ fn current(
     kind: ArchiveKind,
     index: &mut StatIndex,
     store: Option<&Store>,
+    remote: Option<&RemoteCache>,
 ) -> Option<Current> {
     if index.lookup(path) == Some(*key) {
         return Some(Current::OnDisk);
@@ -156,7 +192,10 @@ fn current(
             return Some(Current::OnDisk);
         }
     }
-    store?.get(key, kind).map(Current::Stored)
+    if let Some(bytes) = store?.get(key, kind) {
+        return Some(Current::Stored(bytes));
+    }
+    remote?.fetch(kind, key).map(Current::Remote)
 }
 
 /// Writes a product's bytes to its output (and the store), atomically.
@@ -173,6 +212,13 @@ fn publish(
     fsio::write_atomic(path, bytes)?;
     index.record(path, *key);
     Ok(())
+}
+
+/// Gives a product baked here to the remote cache, if there is one.
+fn share(remote: Option<&RemoteCache>, kind: ArchiveKind, key: &[u8; 32], bytes: &[u8]) {
+    if let Some(remote) = remote {
+        remote.upload(kind, key, bytes);
+    }
 }
 
 fn encoded(
@@ -262,14 +308,19 @@ impl Run<'_, '_> {
                 None
             } else {
                 let store = (!self.opts.force).then_some(self.store);
-                current(&path, &key, ArchiveKind::Map, self.index, store)
+                current(
+                    &path,
+                    &key,
+                    ArchiveKind::Map,
+                    self.index,
+                    store,
+                    self.opts.remote,
+                )
             };
             match cur {
-                Some(Current::OnDisk) => maps.push(Some(done(Status::Cached, "current".into()))),
-                Some(Current::Stored(bytes)) => {
-                    fsio::write_atomic(&path, &bytes)?;
-                    self.index.record(&path, key);
-                    maps.push(Some(done(Status::Cached, "restored from the store".into())));
+                Some(c) => {
+                    let detail = c.restore(&path, &key, self.store, self.index)?;
+                    maps.push(Some(done(Status::Cached, detail)));
                 }
                 // Decode stale inputs before anything is written: a bad input fails only its product.
                 None => match load_input(spec) {
@@ -300,15 +351,21 @@ impl Run<'_, '_> {
             None
         } else {
             let store = (!self.opts.force).then_some(self.store);
-            current(&proxy_path, &pkey, ArchiveKind::Proxy, self.index, store)
+            let remote = self.opts.remote;
+            current(
+                &proxy_path,
+                &pkey,
+                ArchiveKind::Proxy,
+                self.index,
+                store,
+                remote,
+            )
         };
         let (status, detail) = match cur {
-            Some(Current::OnDisk) => (Status::Cached, "current".to_string()),
-            Some(Current::Stored(bytes)) => {
-                fsio::write_atomic(&proxy_path, &bytes)?;
-                self.index.record(&proxy_path, pkey);
-                (Status::Cached, "restored from the store".to_string())
-            }
+            Some(c) => (
+                Status::Cached,
+                c.restore(&proxy_path, &pkey, self.store, self.index)?,
+            ),
             None if stale.is_empty()
                 && m.inputs.len()
                     == maps
@@ -325,6 +382,7 @@ impl Run<'_, '_> {
                 let data = build_proxy(m, dim, pkey)?;
                 let bytes = encoded(&proxy_path, data.encode())?;
                 publish(&proxy_path, &pkey, &bytes, Some(self.store), self.index)?;
+                share(self.opts.remote, ArchiveKind::Proxy, &pkey, &bytes);
                 proxy_data = Some(data);
                 (Status::Built, describe_proxy(m))
             }
@@ -370,6 +428,7 @@ impl Run<'_, '_> {
                     let built = build_map(m, i, &grid, proxy, key).and_then(|data| {
                         let bytes = encoded(&path, data.encode())?;
                         publish(&path, &key, &bytes, Some(self.store), self.index)?;
+                        share(self.opts.remote, ArchiveKind::Map, &key, &bytes);
                         Ok(data.solver_report)
                     });
                     let (status, detail) = match built {
@@ -429,7 +488,7 @@ pub fn bake_one(m: &Manifest, action: &Action<'_>, output: &Path) -> Result<bool
             )
         }
     };
-    if current(output, &key, kind, &mut none, None).is_some() {
+    if current(output, &key, kind, &mut none, None, None).is_some() {
         return Ok(false);
     }
     let bytes = match action {

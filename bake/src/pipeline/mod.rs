@@ -7,7 +7,9 @@
 //! * [`key`]: the blake3 key of a product; [`store`]: the content-addressed store of archives by key;
 //!   [`stat`]: the index of file stamps that lets a no-op bake skip hashing;
 //! * [`archive`]: proxy and map data turned into archive bytes, and keys read back from disk;
-//! * [`plan`]: the bake as a graph of `bake-one` actions (Ninja, JSON);
+//! * [`plan`]: the bake as a graph of `bake-one` actions (Ninja, JSON); [`bazel`](mod@bazel): the
+//!   same actions as a BUILD file for the rules in `bake/bazel/otbake.bzl`;
+//! * [`remote`]: products shared through a Bazel HTTP cache (`--remote-cache`), verified before use;
 //! * [`inspect`]: human-readable descriptions and validation of archive bytes;
 //! * [`error`]: [`BakeError`], what a product's failure reports.
 //!
@@ -17,11 +19,13 @@
 
 pub mod archive;
 pub mod bake;
+pub mod bazel;
 mod build;
 pub mod error;
 pub mod inspect;
 pub mod key;
 pub mod plan;
+pub mod remote;
 pub mod stat;
 pub mod store;
 

@@ -1,16 +1,17 @@
 //! `otbake plan`: the bake as a build graph of hermetic `bake-one` actions, for Ninja locally or a
-//! remote-execution system (Bazel, Buck2) at scale.
+//! remote-execution system (Bazel, Buck2) at scale; the Bazel BUILD file is
+//! [`super::bazel`].
 //!
 //! Each action declares its inputs (the manifest, the input file — for a mesh under `fit = "common"`
-//! every mesh file —, the proxy archive for maps) and its
-//! single output, and runs `otbake bake-one`, which reads nothing else and writes nothing else. The
+//! every mesh file —, the proxy archive for maps, and for maps of a manifest whose proxy is an input
+//! that input's file, which the proxy's key hashes) and its single output, and runs `otbake bake-one`, which reads nothing else and writes nothing else. The
 //! Ninja rules use `restat = 1`: `bake-one` leaves a current output untouched, so editing one input's
 //! line in the manifest rebakes that map only, even though every action depends on the manifest file.
 
 use crate::input::mesh::voxelize::Fit;
 use crate::input::InputKind;
 use crate::manifest::{Manifest, ProxySource};
-use crate::pipeline::error::BakeError;
+use crate::pipeline::bazel::{self, BazelError, BazelLabels};
 use std::path::{Path, PathBuf};
 
 /// Output format of a plan.
@@ -20,6 +21,19 @@ pub enum Format {
     Ninja,
     /// `{"actions": [{"id", "argv", "inputs", "outputs"}]}`.
     Json,
+    /// A `BUILD.bazel` file for the manifest's folder, calling `bake/bazel/otbake.bzl`.
+    Bazel,
+}
+
+/// What `otbake plan` writes.
+#[derive(Debug, Clone)]
+pub struct PlanOptions<'a> {
+    /// The otbake executable the Ninja and JSON actions run.
+    pub otbake: &'a Path,
+    /// The output format.
+    pub format: Format,
+    /// Where a Bazel plan finds the rules and the otbake binary.
+    pub bazel: BazelLabels,
 }
 
 /// One hermetic action.
@@ -48,9 +62,11 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
     let manifest = abs(&m.path);
     let proxy_out = abs(&m.proxy_archive());
     let mut proxy_inputs = vec![manifest.clone()];
-    if let ProxySource::Input(i) = m.proxy.source {
-        proxy_inputs.push(abs(&m.inputs[i].path));
-    }
+    let proxy_file = match m.proxy.source {
+        ProxySource::Input(i) => Some(abs(&m.inputs[i].path)),
+        ProxySource::Shape(_) => None,
+    };
+    proxy_inputs.extend(proxy_file.clone());
     let mut out = vec![PlannedAction {
         id: "proxy".into(),
         argv: vec![
@@ -71,6 +87,10 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
         // A mesh placed by the common box reads every mesh input.
         if let (InputKind::Mesh, Fit::Common(all)) = (input.kind, &input.options.mesh.fit) {
             inputs.extend(all.iter().filter(|p| **p != input.path).map(|p| abs(p)));
+        }
+        // A map's key holds the proxy's key, which hashes an input proxy's file.
+        if let Some(f) = proxy_file.as_ref().filter(|f| !inputs.contains(f)) {
+            inputs.push(f.clone());
         }
         inputs.push(proxy_out.clone());
         out.push(PlannedAction {
@@ -112,10 +132,11 @@ fn shell(arg: &str) -> String {
     }
 }
 
-/// The plan as text in `format`.
-pub fn render(m: &Manifest, otbake: &Path, format: Format) -> Result<String, BakeError> {
-    let actions = actions(m, otbake);
-    Ok(match format {
+/// The plan as text in `opts.format`. Only a Bazel plan can fail (an input outside the package).
+pub fn render(m: &Manifest, opts: &PlanOptions<'_>) -> Result<String, BazelError> {
+    let actions = actions(m, opts.otbake);
+    Ok(match opts.format {
+        Format::Bazel => bazel::render(m, &opts.bazel)?,
         Format::Json => {
             let list: Vec<_> = actions
                 .iter()
