@@ -57,7 +57,8 @@ pub struct BakeOneArgs {
 
 /// `otbake bake-one`: one product, hermetically.
 pub fn bake_one(args: BakeOneArgs) -> Result<()> {
-    let m = Manifest::load(&args.manifest)?;
+    let mut m = Manifest::load(&args.manifest)?;
+    super::budget::apply(&mut m);
     let product = &args.product;
     let action = if product == "proxy" {
         Action::Proxy

@@ -9,6 +9,8 @@
 //! * [`archive`]: proxy and map data turned into archive bytes, and keys read back from disk;
 //! * [`plan`]: the bake as a graph of `bake-one` actions (Ninja, JSON);
 //! * [`inspect`]: human-readable descriptions and validation of archive bytes;
+//! * [`memory`]: each product's memory estimate, checked against the budget before any work;
+//! * [`warnings`]: inputs accepted that look wrong, reported with what to do;
 //! * [`error`]: [`BakeError`], what a product's failure reports.
 //!
 //! Architecture Invariant: a product's bytes depend only on what its key covers — never on the
@@ -21,11 +23,13 @@ mod build;
 pub mod error;
 pub mod inspect;
 pub mod key;
+pub mod memory;
 pub mod plan;
 pub mod stat;
 pub mod store;
+pub mod warnings;
 
 pub use bake::{bake, bake_one, Action, BakeOptions, BakeReport, Event, Product, Status};
-pub use build::load_input;
+pub use build::{load_input, load_input_within};
 pub use error::BakeError;
 pub use key::{map_key, proxy_key};
