@@ -120,7 +120,7 @@ fn an_obj_face_index_out_of_range_names_the_line_and_the_index() {
     .unwrap();
     one_3d(&dir, "bad.obj");
     let err = otbake_err(&dir, &["bake", "m.toml"]);
-    assert!(err.contains("bad.obj:6"), "{err}");
+    assert!(err.contains("bad.obj") && err.contains("line 6:"), "{err}");
     assert!(
         err.contains("vertex index 12") && err.contains("only 4 vertices"),
         "{err}"

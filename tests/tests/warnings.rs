@@ -6,7 +6,10 @@ use std::path::Path;
 
 /// The warnings of `otbake bake --json` on `manifest` in `dir`: (input, file, message) each, and
 /// the stderr lines that start with `warning: `.
-fn warnings(dir: &Path, manifest: &str) -> (Vec<(Option<String>, String, String)>, Vec<String>) {
+/// One warning of the JSON report: input (null for the manifest), file, message.
+type Json = (Option<String>, String, String);
+
+fn warnings(dir: &Path, manifest: &str) -> (Vec<Json>, Vec<String>) {
     let out = otbake_ok(dir, &["bake", "--json", manifest]);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let json = v["warnings"]

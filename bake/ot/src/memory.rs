@@ -92,7 +92,7 @@ mod tests {
             assert!(estimate_bytes(&ex, 10_000, dim) < a);
         }
         // 16M 3D points with Sinkhorn: far beyond a build machine (the kernel alone hits its cap).
-        assert!(estimate_bytes(&sk, 16 << 20, 3) > 16 << 30);
+        assert!(estimate_bytes(&sk, 16 << 20, 3) > 12 << 30);
         assert_eq!(
             sinkhorn_pairs(&SinkhornSettings::default(), 16 << 20, 3),
             SINKHORN_MAX_PAIRS

@@ -132,7 +132,7 @@ impl Budget {
         Err(LimitError {
             what: what(),
             needed,
-            budget,
+            budget: Box::new(budget),
             fix: fix.to_string(),
         })
     }
@@ -151,8 +151,8 @@ pub struct LimitError {
     pub what: String,
     /// The estimate in bytes.
     pub needed: u64,
-    /// The budget it exceeds.
-    pub budget: Budget,
+    /// The budget it exceeds (boxed: errors that carry this one stay small).
+    pub budget: Box<Budget>,
     /// How to need less.
     pub fix: String,
 }

@@ -39,7 +39,7 @@ pub fn parse_size(text: &str) -> Result<u64, String> {
         }
     };
     let bytes = value * scale;
-    if !(bytes >= 1.0) {
+    if bytes.is_nan() || bytes < 1.0 {
         return Err(format!(
             "{text:?} is not a usable size: give at least 1 byte; {example}"
         ));

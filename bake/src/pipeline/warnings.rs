@@ -15,9 +15,10 @@ use std::path::PathBuf;
 pub const EXTREME_ASPECT: f64 = 4.0;
 
 /// A periodic image is taken to tile when the mean density step across its wrap seams is at most
-/// this many times the mean step between neighbouring pixels inside. Tileable textures measure
-/// about 1 (the shipped ones 0.9–1.1); an image whose opposite edges do not match measures several.
-pub const SEAM_RATIO: f64 = 2.0;
+/// this many times the mean step between neighbouring pixels inside. Tileable images measure about
+/// 1, up to π/2 when the seam falls where a smooth pattern is steepest (a sine cut at a zero); an
+/// image whose opposite edges do not match measures several (a ramp: the side in pixels).
+pub const SEAM_RATIO: f64 = 3.0;
 
 /// One warning.
 #[derive(Debug, Clone, PartialEq)]
@@ -172,6 +173,6 @@ mod tests {
             .map(|i| 2.0 + (std::f32::consts::TAU * (i % n) as f32 / n as f32).sin())
             .collect();
         let r = seam_ratio(&Grid::new(vec![n, n], sine, vec![]).unwrap()).unwrap();
-        assert!(r < 1.5, "{r}");
+        assert!(r < 2.0, "{r}");
     }
 }

@@ -47,13 +47,6 @@ pub enum MeshError {
         vertex: usize,
         text: String,
     },
-    #[error("OBJ mesh {}:{line}: a face refers to vertex index {index}, but {} — OBJ indices count from 1 (negative ones back from the last `v` line so far): fix the face or add the missing vertices", path.display(), if *vertices == 0 { "no vertex is defined before it".to_string() } else { format!("only {vertices} vertices exist (1 to {vertices}, or -1 to -{vertices})") })]
-    FaceIndex {
-        path: PathBuf,
-        line: usize,
-        index: i64,
-        vertices: u64,
-    },
     #[error(transparent)]
     Limit(#[from] LimitError),
     #[error("OBJ mesh {}: all {faces} triangles have zero area: the surface bounds no volume", path.display())]

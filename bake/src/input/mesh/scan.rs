@@ -37,11 +37,17 @@ fn check_index(
     if ok {
         return Ok(());
     }
-    Err(MeshError::FaceIndex {
+    let vertices = if i < 0 { defined } else { total };
+    let exist = match vertices {
+        0 => "no vertex is defined before it".to_string(),
+        v => format!("only {v} vertices exist (1 to {v}, or -1 to -{v} counting back)"),
+    };
+    Err(MeshError::Parse {
         path: path.to_path_buf(),
-        line,
-        index: i,
-        vertices: if i < 0 { defined } else { total },
+        reason: format!(
+            "line {line}: a face refers to vertex index {i}, but {exist}; OBJ indices count from 1, \
+             negative ones back from the last `v` line so far: fix the face or add the missing vertices"
+        ),
     })
 }
 
@@ -114,7 +120,7 @@ mod tests {
         for (face, index) in [("f 1 2 9", "9"), ("f 0 1 2", "0"), ("f 1 2 -7", "-7")] {
             let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\n# a comment\n{face}\n");
             let e = scan(Path::new("m.obj"), &text).unwrap_err().to_string();
-            assert!(e.contains("m.obj:5"), "{e}");
+            assert!(e.contains("m.obj") && e.contains("line 5:"), "{e}");
             assert!(e.contains(&format!("index {index}")), "{e}");
             assert!(e.contains("3 vertices"), "{e}");
         }
