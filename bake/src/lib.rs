@@ -66,6 +66,7 @@
 pub mod bench;
 pub mod fsio;
 pub mod input;
+pub mod limits;
 pub mod manifest;
 pub mod pipeline;
 pub mod proxy;

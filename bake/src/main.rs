@@ -2,12 +2,17 @@
 
 mod cli;
 
-use clap::Parser;
+use clap::{CommandFactory, FromArgMatches};
 use cli::args::{Cli, Command};
-use cli::{bake, bench, brdf, image, volume};
+use cli::{bake, bench, brdf, budget, image, volume};
 
 fn main() {
-    if let Err(e) = run(Cli::parse().command) {
+    let matches = Cli::command()
+        .mut_arg("memory", |a| a.help(budget::help()))
+        .get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    budget::set(cli.memory);
+    if let Err(e) = run(cli.command) {
         eprintln!("error: {e}");
         let mut source = e.source();
         while let Some(s) = source {

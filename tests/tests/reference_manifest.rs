@@ -49,6 +49,7 @@ const KEYS: &[(&str, &[&str])] = &[
     ("brdf", &["resolution"]),
     ("mesh", &["resolution", "fit", "margin"]),
     ("volume", &["fit"]),
+    ("limits", &["memory"]),
     (
         "storage",
         &[

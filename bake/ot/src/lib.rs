@@ -90,6 +90,7 @@ mod circular;
 mod cost;
 mod error;
 mod exact;
+pub mod memory;
 pub mod metrics;
 mod problem;
 mod rng;

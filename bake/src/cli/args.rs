@@ -12,6 +12,9 @@ use clap::{Parser, Subcommand};
     about = "Bake optimal-transport maps of appearance assets; blend them at run time."
 )]
 pub struct Cli {
+    /// Memory budget (the help text, with the default for this process, is set in `main`).
+    #[arg(long, global = true, value_name = "SIZE", value_parser = super::budget::parse)]
+    pub memory: Option<u64>,
     #[command(subcommand)]
     pub command: Command,
 }

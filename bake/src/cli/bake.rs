@@ -84,7 +84,8 @@ pub struct BakeOneArgs {
 /// `otbake bake-one`: one product, hermetically.
 pub fn bake_one(args: BakeOneArgs) -> Result<()> {
     // Only this product's files need exist: a sandbox shows an action its declared inputs only.
-    let m = Manifest::load_for_product(&args.manifest, &args.product)?;
+    let mut m = Manifest::load_for_product(&args.manifest, &args.product)?;
+    super::budget::apply(&mut m);
     let product = &args.product;
     let action = if product == "proxy" {
         Action::Proxy

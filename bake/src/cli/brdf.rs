@@ -1,9 +1,11 @@
 //! BRDF blends: `brdf-slice`, `brdf-spheres`, `brdf-export`.
 
+use super::budget::check_render;
 use super::scene::Scene;
 use anyhow::{bail, Result};
 use otbake::render::brdf::eval::{BrdfBlend, BrdfBlendError, BrdfKernel, DEFAULT_ADAPTIVE};
 use otbake::render::imageio::write_image;
+use otbake::render::memory;
 use otbake_runtime::{AdaptiveKernel, Error as RuntimeError, Kernel, Map, Proxy};
 use std::path::PathBuf;
 
@@ -75,9 +77,25 @@ pub struct SliceArgs {
 
 /// `otbake brdf-slice`: one θi slice of a blend on the unit disk.
 pub fn slice(args: SliceArgs) -> Result<()> {
-    if !(0.0..90.0).contains(&args.theta_i) || !(1..=8192).contains(&args.size) {
-        bail!("--theta-i must be in [0, 90) degrees and --size 1 to 8192");
+    if !(1..=8192).contains(&args.size) {
+        bail!(
+            "--size {}: the image side must be 1 to 8192 pixels",
+            args.size
+        );
     }
+    if !(0.0..90.0).contains(&args.theta_i) {
+        bail!(
+            "--theta-i {}: the incident angle must be in [0, 90) degrees",
+            args.theta_i
+        );
+    }
+    let size = args.size;
+    check_render(
+        &args.manifest,
+        memory::image_bytes(size, size),
+        || format!("brdf-slice: a {size}x{size} image"),
+        "lower --size",
+    )?;
     let scene = Scene::open(&args.manifest, Some(&args.weights))?;
     let maps = scene.maps()?;
     let b = args.kernel.blend(scene.proxy()?, &maps)?;
@@ -110,6 +128,18 @@ pub fn spheres(args: SpheresArgs) -> Result<()> {
     if !(2..=4096).contains(&size) {
         bail!("--size {size}: use 2 to 4096 pixels");
     }
+    let steps = args.steps;
+    check_render(
+        &args.manifest,
+        memory::grid_bytes(4, steps, size, size),
+        || {
+            format!(
+                "brdf-spheres: up to {} spheres of {size} pixels (--steps {steps})",
+                memory::grid_blends(4, steps)
+            )
+        },
+        "lower --steps or --size",
+    )?;
     let scene = Scene::open(&args.manifest, None)?;
     let maps = scene.maps()?;
     let b = args.kernel.blend(scene.proxy()?, &maps)?;

@@ -1,11 +1,13 @@
 //! 2D images of blends: `blend`, `grid`, `texture`, and the raw map points of `points`.
 
+use super::budget::check_render;
 use super::scene::{input_names, Open, Scene};
 use anyhow::{bail, Result};
 use otbake::render::imageio::write_image;
+use otbake::render::memory;
 use otbake::render::texture::{render_lod, render_texture, WeightField};
 use otbake::render::{render, render_grid};
-use otbake::{Method, RenderSettings};
+use otbake::{Manifest, Method, RenderSettings};
 use std::path::PathBuf;
 
 /// The image flags `blend` and `grid` share.
@@ -42,16 +44,24 @@ fn parse_size(s: &str) -> std::result::Result<(usize, usize), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("{s:?}: expected WxH, e.g. 256x256"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<usize>()
-            .ok()
-            .filter(|&v| (1..=16384).contains(&v))
+    let parse = |v: &str, side: &str| {
+        let v = v.trim();
+        if v.is_empty() {
+            return Err(format!(
+                "{s:?}: the {side} is missing; expected WxH, e.g. 256x256"
+            ));
+        }
+        let n = v.parse::<usize>().map_err(|_| {
+            format!("{s:?}: the {side} {v:?} is not a whole number; expected WxH, e.g. 256x256")
+        })?;
+        if !(1..=16384).contains(&n) {
+            return Err(format!(
+                "{s:?}: the {side} {n} is out of range: width and height must be 1 to 16384"
+            ));
+        }
+        Ok(n)
     };
-    match (parse(w), parse(h)) {
-        (Some(w), Some(h)) => Ok((w, h)),
-        _ => Err(format!("{s:?}: width and height must be 1 to 16384")),
-    }
+    Ok((parse(w, "width")?, parse(h, "height")?))
 }
 
 #[derive(clap::Args)]
@@ -76,6 +86,13 @@ pub struct BlendArgs {
 /// `otbake blend`: one blend as an image.
 pub fn blend(args: BlendArgs) -> Result<()> {
     let settings = args.image.settings()?;
+    let (w, h) = args.image.size;
+    check_render(
+        &args.manifest,
+        memory::image_bytes(w, h),
+        || format!("blend: a {w}x{h} image"),
+        "lower --size",
+    )?;
     let scene = Scene::open(&args.manifest, Some(&args.weights))?;
     let maps = scene.maps()?;
     let img = render(scene.proxy()?, &maps, &args.weights, &settings)?;
@@ -100,6 +117,20 @@ pub struct GridArgs {
 /// `otbake grid`: a row, triangle or square of blends in one image.
 pub fn grid(args: GridArgs) -> Result<()> {
     let settings = args.image.settings()?;
+    let (w, h, steps) = (args.image.size.0, args.image.size.1, args.steps);
+    // The manifest's input count decides the layout; 4 (a square) bounds the others.
+    let k = Manifest::load(&args.manifest).map_or(4, |m| m.inputs.len());
+    check_render(
+        &args.manifest,
+        memory::grid_bytes(k, steps, w, h),
+        || {
+            format!(
+                "grid: {} blends of {w}x{h} pixels (--steps {steps}, {k} inputs)",
+                memory::grid_blends(k, steps)
+            )
+        },
+        "lower --steps or --size",
+    )?;
     let scene = Scene::open(&args.manifest, None)?;
     let img = render_grid(&scene.archives, args.steps, &settings)?;
     write_image(&args.output, &img)?;
@@ -141,6 +172,13 @@ pub fn texture(args: TextureArgs) -> Result<()> {
     if !(sigma.is_finite() && sigma > 0.0) {
         bail!("--sigma {sigma}: use a positive number of pixels");
     }
+    let k = Manifest::load(&manifest).map_or(4, |m| m.inputs.len());
+    check_render(
+        &manifest,
+        memory::texture_bytes(width, height, k),
+        || format!("texture: a {width}x{height} image of per-pixel weights"),
+        "lower --size",
+    )?;
     let scene = Scene::open(&manifest, None)?;
     let maps = scene.maps()?;
     if let WeightField::Constant(w) = &weights {

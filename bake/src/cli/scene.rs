@@ -56,7 +56,8 @@ impl Scene {
     /// Loads the manifest at `path` and bakes what is not current, without reading the archives.
     /// Fails naming the first failed product (an input's before the proxy's).
     pub fn bake(path: &Path, open: &Open<'_>) -> Result<Manifest> {
-        let m = Manifest::load(path)?;
+        let mut m = Manifest::load(path)?;
+        super::budget::apply(&mut m);
         let progress = Progress::new(open.show.lines);
         let on_event = |e: &Event<'_>| progress.event(e);
         let report = bake(
@@ -69,6 +70,9 @@ impl Scene {
             },
         )?;
         progress.finish();
+        for w in &report.warnings {
+            eprintln!("warning: {}", w.line());
+        }
         let remote = open.remote.map(RemoteCache::take_summary);
         if let Some(r) = &remote {
             // What the server did goes to stderr even with --json: a failing cache is news.
@@ -125,6 +129,22 @@ fn check_weight_count(m: &Manifest, manifest: &Path, weights: &[f32]) -> Result<
             m.inputs.len(),
             input_names(m)
         );
+    }
+    for (i, (&w, input)) in weights.iter().zip(&m.inputs).enumerate() {
+        if !(w.is_finite() && w >= 0.0) {
+            let what = if w.is_nan() {
+                "not a number"
+            } else if w < 0.0 {
+                "negative"
+            } else {
+                "infinite"
+            };
+            bail!(
+                "--weights: value {w} (position {}, for input {:?}) is {what}: every weight must be a finite number >= 0",
+                i + 1,
+                input.name
+            );
+        }
     }
     Ok(())
 }

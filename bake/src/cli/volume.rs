@@ -1,8 +1,10 @@
 //! Blends of 3D inputs: `volume` (a .vol grid), `render` (ray-marched images), `slice` (a plane).
 
+use super::budget::check_render;
 use super::scene::Scene;
 use anyhow::{bail, Result};
 use otbake::render::imageio::write_image;
+use otbake::render::memory;
 use otbake::render::volume::{
     self as renderer, Axis, RenderSettings, SliceSettings, DEFAULT_SIGMA,
 };
@@ -33,6 +35,13 @@ pub struct VolumeArgs {
 
 /// `otbake volume`: one blend sampled on a res³ grid.
 pub fn volume(args: VolumeArgs) -> Result<()> {
+    let res = args.res;
+    check_render(
+        &args.manifest,
+        memory::volume_bytes(res),
+        || format!("volume: a {res}³ grid"),
+        "lower --res",
+    )?;
     let scene = Scene::open(&args.manifest, Some(&args.weights))?;
     let maps = scene.maps()?;
     renderer::export(scene.proxy()?, &maps, &args.weights, args.res, args.sigma)?
@@ -89,6 +98,23 @@ pub fn render(args: RenderArgs) -> Result<()> {
         extinction: args.extinction,
         step: args.step,
     };
+    let size = args.size;
+    let bytes = match args.triangle {
+        Some(rows) => memory::grid_bytes(3, rows, size, size),
+        None => memory::image_bytes(size, size),
+    };
+    check_render(
+        &args.manifest,
+        bytes,
+        || match args.triangle {
+            Some(rows) => format!(
+                "render --triangle {rows}: {} blends of {size}x{size} pixels",
+                memory::grid_blends(3, rows)
+            ),
+            None => format!("render: a {size}x{size} image"),
+        },
+        "lower --triangle or --size",
+    )?;
     let scene = Scene::open(&args.manifest, args.weights.as_deref())?;
     let img = match (&args.weights, args.triangle) {
         (Some(w), _) => {
@@ -136,6 +162,20 @@ pub struct SliceArgs {
 
 /// `otbake slice`: one blend on an axis-aligned plane, grey.
 pub fn slice(args: SliceArgs) -> Result<()> {
+    let size = args.size;
+    // The settings' own checks, before anything is baked (the renderer repeats them).
+    if !(1..=8192).contains(&size) {
+        bail!("--size {size}: the image side must be 1 to 8192 pixels");
+    }
+    if !(args.at.is_finite() && (0.0..=1.0).contains(&args.at)) {
+        bail!("--at {}: the plane's position must be in [0, 1]", args.at);
+    }
+    check_render(
+        &args.manifest,
+        memory::image_bytes(size, size),
+        || format!("slice: a {size}x{size} image"),
+        "lower --size",
+    )?;
     let scene = Scene::open(&args.manifest, Some(&args.weights))?;
     let maps = scene.maps()?;
     let settings = SliceSettings {

@@ -6,6 +6,7 @@
 //! the straight color that the density formulas of [`super::DensityChannel`] expect. The image crate
 //! decodes palette and low-bit-depth PNGs to 8-bit RGB(A) or grey.
 
+use crate::limits::{product, Budget};
 use std::path::{Path, PathBuf};
 
 use super::{DensityChannel, Grid, InputError};
@@ -23,6 +24,38 @@ pub fn srgb_to_linear(v: f64) -> f64 {
 /// Supported: `.png`, `.jpg`, `.jpeg` (8/16-bit grey, grey+alpha, RGB, RGBA, palette) and `.exr`
 /// (first layer with R, G, B and optional A channels).
 pub fn load_image(path: &Path, channel: DensityChannel) -> Result<Grid, InputError> {
+    load_image_within(path, channel, &Budget::for_process())
+}
+
+/// Bytes per pixel beyond the decoded file's own: the 8- or 16-bit RGBA copy (at most 8), the
+/// linear `[f32; 4]` pixels (16), and the grid's mass and colour ratio (4 + 12), which exist
+/// together at the peak of [`load_image`].
+const BYTES_PER_PIXEL: u64 = 8 + 16 + 16;
+
+/// Checks a `width × height` image whose decoder allocates `decoded` bytes against `budget`.
+fn check_pixels(
+    path: &Path,
+    width: u64,
+    height: u64,
+    decoded: u64,
+    budget: &Budget,
+) -> Result<(), InputError> {
+    let needed = product(&[width, height, BYTES_PER_PIXEL]).saturating_add(decoded);
+    budget.check(
+        needed,
+        || format!("image {}: {width}×{height} pixels", path.display()),
+        "use a smaller image (downscale it)",
+    )?;
+    Ok(())
+}
+
+/// [`load_image`], refusing before decoding an image whose header announces more pixels than
+/// `budget` holds (the image crate's own limits are set to the budget too).
+pub fn load_image_within(
+    path: &Path,
+    channel: DensityChannel,
+    budget: &Budget,
+) -> Result<Grid, InputError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -54,8 +87,8 @@ pub fn load_image(path: &Path, channel: DensityChannel) -> Result<Grid, InputErr
         }
     }
     let pixels = match format {
-        Some(format) => decode_srgb(path, format)?,
-        None => decode_exr(path)?,
+        Some(format) => decode_srgb(path, format, budget)?,
+        None => decode_exr(path, budget)?,
     };
     pixels.into_grid(path, channel)
 }
@@ -110,7 +143,12 @@ fn density(channel: DensityChannel, px: &[f32; 4]) -> (f32, [f32; 3]) {
     }
 }
 
-fn decode_srgb(path: &Path, format: image::ImageFormat) -> Result<LinearPixels, InputError> {
+fn decode_srgb(
+    path: &Path,
+    format: image::ImageFormat,
+    budget: &Budget,
+) -> Result<LinearPixels, InputError> {
+    use image::ImageDecoder;
     let decode_err = |e: image::ImageError| InputError::Decode {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -120,7 +158,13 @@ fn decode_srgb(path: &Path, format: image::ImageFormat) -> Result<LinearPixels, 
         source,
     })?;
     reader.set_format(format);
-    let img = reader.decode().map_err(decode_err)?;
+    let mut limits = image::Limits::no_limits();
+    limits.max_alloc = Some(budget.bytes);
+    reader.limits(limits);
+    let decoder = reader.into_decoder().map_err(decode_err)?;
+    let (w, h) = decoder.dimensions();
+    check_pixels(path, w.into(), h.into(), decoder.total_bytes(), budget)?;
+    let img = image::DynamicImage::from_decoder(decoder).map_err(decode_err)?;
     let (width, height) = (img.width() as usize, img.height() as usize);
     if width == 0 || height == 0 {
         return Err(empty(path, width, height));
@@ -172,8 +216,15 @@ fn decode_srgb(path: &Path, format: image::ImageFormat) -> Result<LinearPixels, 
     })
 }
 
-fn decode_exr(path: &Path) -> Result<LinearPixels, InputError> {
+fn decode_exr(path: &Path, budget: &Budget) -> Result<LinearPixels, InputError> {
     use exr::prelude::*;
+    // The header first: the pixel buffer below is allocated from its size.
+    if let Ok(meta) = exr::meta::MetaData::read_from_file(path, false) {
+        if let Some(header) = meta.headers.first() {
+            let size = header.layer_size;
+            check_pixels(path, size.width() as u64, size.height() as u64, 0, budget)?;
+        }
+    }
     let image = read_first_rgba_layer_from_file(
         path,
         |resolution: Vec2<usize>, _channels: &RgbaChannels| {

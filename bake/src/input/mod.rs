@@ -44,6 +44,7 @@ pub mod vol;
 pub use self::image::{load_image, srgb_to_linear};
 pub use grid::Grid;
 
+use crate::limits::Budget;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -137,11 +138,23 @@ pub fn load(path: &Path, channel: DensityChannel) -> Result<Grid, InputError> {
     load_with(path, channel, &LoadOptions::default())
 }
 
-/// Loads any supported input file as a density grid.
+/// Loads any supported input file as a density grid, within the process's default budget
+/// ([`Budget::for_process`]).
 pub fn load_with(
     path: &Path,
     channel: DensityChannel,
     options: &LoadOptions,
+) -> Result<Grid, InputError> {
+    load_within(path, channel, options, &Budget::for_process())
+}
+
+/// Loads any supported input file as a density grid, refusing with [`InputError::Limit`] before
+/// allocating when the decoded size (from the file's header or counts) exceeds `budget`.
+pub fn load_within(
+    path: &Path,
+    channel: DensityChannel,
+    options: &LoadOptions,
+    budget: &Budget,
 ) -> Result<Grid, InputError> {
     let kind = InputKind::from_path(path);
     if kind.is_some_and(InputKind::is_brdf) && channel != DensityChannel::Luminance {
@@ -157,8 +170,11 @@ pub fn load_with(
         });
     }
     let res = options.brdf_resolution;
+    if kind.is_some_and(InputKind::is_brdf) {
+        crate::input::brdf::check_grid(path, res, budget)?;
+    }
     match kind {
-        Some(InputKind::Image) => load_image(path, channel),
+        Some(InputKind::Image) => self::image::load_image_within(path, channel, budget),
         Some(InputKind::Merl) => {
             let merl = crate::input::brdf::merl::Merl::read(path)?;
             crate::input::brdf::to_grid(path, res, |a, b, c| merl.eval(a, b, c))
@@ -167,8 +183,10 @@ pub fn load_with(
             let lattice = crate::input::brdf::cornell::Cornell::read(path)?.lattice();
             crate::input::brdf::to_grid(path, res, |a, b, c| lattice.eval(a, b, c))
         }
-        Some(InputKind::Volume) => crate::input::vol::load(path, options.volume_fit),
-        Some(InputKind::Mesh) => crate::input::mesh::voxelize::load(path, &options.mesh),
+        Some(InputKind::Volume) => crate::input::vol::load_within(path, options.volume_fit, budget),
+        Some(InputKind::Mesh) => {
+            crate::input::mesh::voxelize::load_within(path, &options.mesh, budget)
+        }
         None => Err(InputError::UnsupportedExtension {
             path: path.to_path_buf(),
             ext: path
@@ -275,6 +293,9 @@ pub enum InputError {
         path: PathBuf,
         channel: DensityChannel,
     },
+
+    #[error(transparent)]
+    Limit(#[from] crate::limits::LimitError),
 
     #[error("invalid density grid: {0}")]
     GridShape(String),

@@ -26,6 +26,7 @@
 //! keeps its proportions (the box only checks that the cells are cubic).
 
 use crate::input::{Grid, InputError};
+use crate::limits::{product, Budget};
 use std::path::{Path, PathBuf};
 
 /// Bytes before the values.
@@ -264,11 +265,20 @@ impl VolFile {
         if let Some(i) = self.data.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             let [nx, ny, _] = self.dims;
             let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+            let v = self.data[i];
+            let hint = if v < 0.0 {
+                "a density is an amount of matter per cell (smoke, fog, a solid's occupancy), never \
+                 below 0. If this grid is a signed distance (negative inside a surface), convert it: \
+                 1 where the distance is < 0 and 0 elsewhere (or a smooth band, clamp(-d / w, 0, 1) \
+                 for a width w), or bake the surface as an .obj mesh instead; if it is a density \
+                 with noise below 0, clamp those values to 0"
+            } else {
+                "replace NaN and infinite values by finite densities (e.g. 0 for empty cells) and re-save the grid"
+            };
             return Err(err(
                 HEADER_BYTES + 4 * i,
                 format!(
-                    "cell (x {x}, y {y}, z {z}) is {}: densities must be finite and >= 0; replace NaN, infinite and negative values (e.g. by 0)",
-                    self.data[i]
+                    "cell (x {x}, y {y}, z {z}) is {v}: densities must be finite and >= 0; {hint}"
                 ),
             ));
         }
@@ -343,9 +353,50 @@ impl VolFile {
     }
 }
 
-/// Loads a `.vol` file as a density input placed by `fit`.
+/// Loads a `.vol` file as a density input placed by `fit`, within the process's default budget.
 pub fn load(path: &Path, fit: VolFit) -> Result<Grid, InputError> {
+    load_within(path, fit, &Budget::for_process())
+}
+
+/// [`load`], refusing before reading the values a grid whose header announces more than `budget`
+/// holds: the file's bytes, its values, the grid's copy and, for `fit = "pad"`, the padded cube.
+pub fn load_within(path: &Path, fit: VolFit, budget: &Budget) -> Result<Grid, InputError> {
+    if let Some((dims, channels)) = peek_header(path) {
+        let values = product(&[dims[0], dims[1], dims[2], channels]);
+        let side = dims.iter().copied().max().unwrap_or(0);
+        let padded = match fit {
+            VolFit::Stretch => 0,
+            VolFit::Pad => product(&[side, side, side, 4 * 2]),
+        };
+        let needed = product(&[values, 4 * 3]).saturating_add(padded);
+        budget.check(
+            needed,
+            || {
+                format!(
+                    "volume {}: {}×{}×{} cells × {channels} channel(s)",
+                    path.display(),
+                    dims[0],
+                    dims[1],
+                    dims[2]
+                )
+            },
+            "downsample the grid",
+        )?;
+    }
     Ok(VolFile::read(path)?.to_placed_grid(path, fit)?)
+}
+
+/// The resolution and channel count of a `.vol` header, if the file starts with one (anything
+/// else is left to [`VolFile::parse`] to explain).
+fn peek_header(path: &Path) -> Option<([u64; 3], u64)> {
+    use std::io::Read;
+    let mut head = [0u8; HEADER_BYTES];
+    std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
+    if &head[0..3] != b"VOL" {
+        return None;
+    }
+    let v = |k: usize| u64::try_from(i32_at(&head, k)).ok().filter(|&v| v > 0);
+    Some(([v(8)?, v(12)?, v(16)?], v(20)?))
 }
 
 #[cfg(test)]

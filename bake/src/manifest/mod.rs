@@ -13,6 +13,7 @@
 
 mod error;
 mod inputs;
+mod limits;
 mod options;
 mod proxy;
 mod raw;
@@ -22,8 +23,10 @@ mod storage;
 mod tests;
 
 pub use error::ManifestError;
+pub use limits::Limits;
 
 use crate::input::{DensityChannel, InputKind, LoadOptions};
+use crate::limits::Budget;
 use crate::proxy::ProxyShape;
 use crate::solve::SolverSettings;
 use error::Locator;
@@ -55,6 +58,8 @@ pub struct Manifest {
     pub inputs: Vec<InputSpec>,
     /// What map archives store and how precisely (`[storage]`; default [`Storage::FULL`]).
     pub storage: Storage,
+    /// The `[limits]` section: the manifest's own memory budget, if it sets one.
+    pub limits: Limits,
 }
 
 /// Where proxy points come from.
@@ -114,6 +119,15 @@ impl Manifest {
         self.inputs.first().map_or(Wrap::Clamp, |i| i.wrap)
     }
 
+    /// The memory budget of work on this manifest: `[limits] memory` if set (the command line
+    /// replaces it by setting [`Limits::memory`]), else [`Budget::for_process`].
+    pub fn budget(&self) -> Budget {
+        self.limits
+            .memory
+            .clone()
+            .unwrap_or_else(Budget::for_process)
+    }
+
     /// Index of the input called `name`.
     pub fn input_index(&self, name: &str) -> Option<usize> {
         self.inputs.iter().position(|i| i.name == name)
@@ -137,7 +151,7 @@ impl Manifest {
     /// Validates manifest `text` as if read from `path` (paths resolve relative to its directory).
     ///
     /// Sections are validated in a fixed order (output, the grid options of `[brdf]`, `[mesh]` and
-    /// `[volume]`, inputs, proxy, solver, storage), so the first error reported is always the same.
+    /// `[volume]`, inputs, proxy, solver, storage, limits), so the first error reported is always the same.
     pub fn parse(path: &Path, text: &str) -> Result<Self, ManifestError> {
         Self::parse_checking(path, text, FileCheck::Every)
     }
@@ -170,6 +184,7 @@ impl Manifest {
         let periodic = inputs.first().is_some_and(|i| i.wrap == Wrap::Periodic);
         let solver = solver::solver(&loc, &raw.solver, periodic)?;
         let storage = storage::storage(&loc, raw.storage.as_ref())?;
+        let limits = limits::limits(&loc, raw.limits.as_ref())?;
 
         Ok(Manifest {
             path: path.to_path_buf(),
@@ -178,6 +193,7 @@ impl Manifest {
             solver,
             inputs,
             storage,
+            limits,
         })
     }
 }

@@ -19,6 +19,21 @@ pub(super) struct RawManifest {
     pub(super) storage: Option<RawStorage>,
     pub(super) mesh: Option<RawMesh>,
     pub(super) volume: Option<RawVolume>,
+    pub(super) limits: Option<RawLimits>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawLimits {
+    pub(super) memory: Option<Spanned<RawSize>>,
+}
+
+/// A size: `"4GiB"` or a number of bytes.
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum RawSize {
+    Text(String),
+    Bytes(i64),
 }
 
 #[derive(Deserialize)]

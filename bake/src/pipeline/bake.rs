@@ -12,14 +12,17 @@
 
 use crate::fsio;
 use crate::input::Grid;
+use crate::limits::Budget;
 use crate::manifest::Manifest;
 use crate::pipeline::archive::ProxyData;
-use crate::pipeline::build::{build_map, build_proxy, describe_proxy, load_input};
+use crate::pipeline::build::{build_map, build_proxy, describe_proxy, load_input_within};
 use crate::pipeline::error::BakeError;
 use crate::pipeline::key::{map_key, proxy_key};
 use crate::pipeline::remote::RemoteCache;
+use crate::pipeline::memory::{check_map, check_proxy};
 use crate::pipeline::stat::StatIndex;
 use crate::pipeline::store::{self, Store};
+use crate::pipeline::warnings::{input_warnings, manifest_warnings, Warning};
 use otbake_formats::ArchiveKind;
 use rkyv::util::AlignedVec;
 use std::path::{Path, PathBuf};
@@ -67,6 +70,8 @@ pub struct Product {
 pub struct BakeReport {
     /// Every product of the manifest.
     pub products: Vec<Product>,
+    /// Inputs accepted that look wrong (see [`crate::pipeline::warnings`]).
+    pub warnings: Vec<Warning>,
 }
 
 impl BakeReport {
@@ -75,7 +80,8 @@ impl BakeReport {
         self.products.iter().any(|p| p.status == Status::Failed)
     }
 
-    /// The report as JSON: `{"products": [{"name", "path", "status", "seconds", "detail"}]}`.
+    /// The report as JSON: `{"products": [{"name", "path", "status", "seconds", "detail"}],
+    /// "warnings": [{"input", "file", "message"}]}` (`input` is null for the manifest's own).
     pub fn to_json(&self) -> String {
         self.to_value().to_string()
     }
@@ -95,7 +101,18 @@ impl BakeReport {
                 })
             })
             .collect();
-        serde_json::json!({ "products": products })
+        let warnings: Vec<_> = self
+            .warnings
+            .iter()
+            .map(|w| {
+                serde_json::json!({
+                    "input": w.input,
+                    "file": w.file.display().to_string(),
+                    "message": w.message,
+                })
+            })
+            .collect();
+        serde_json::json!({ "products": products, "warnings": warnings })
     }
 }
 
@@ -242,19 +259,27 @@ pub fn bake(m: &Manifest, opts: &BakeOptions<'_>) -> Result<BakeReport, BakeErro
             .map_or_else(|| m.output_dir.join(store::DEFAULT_DIR), Path::to_path_buf),
     );
     let mut index = StatIndex::load(&store.root().join("stat-index"));
+    let budget = m.budget();
+    let mut report = BakeReport {
+        warnings: manifest_warnings(m),
+        ..BakeReport::default()
+    };
     let mut run = Run {
         m,
         opts,
         store: &store,
         index: &mut index,
+        budget: &budget,
+        dim,
+        warnings: Vec::new(),
     };
-    let mut report = BakeReport::default();
     let pkey = proxy_key(m, dim, run.index)?;
     let (maps, stale) = run.classify_maps(&pkey)?;
     let (proxy_product, proxy_data) = run.proxy(dim, pkey, &maps, &stale)?;
     run.emit(Event::Finished(&proxy_product));
     report.products.push(proxy_product);
     run.build_maps(maps, stale, proxy_data, &mut report)?;
+    report.warnings.append(&mut run.warnings);
     index.save()?;
     Ok(report)
 }
@@ -269,6 +294,12 @@ struct Run<'r, 'o> {
     opts: &'r BakeOptions<'o>,
     store: &'r Store,
     index: &'r mut StatIndex,
+    /// What each product may allocate.
+    budget: &'r Budget,
+    /// The inputs' dimension.
+    dim: usize,
+    /// Warnings of the inputs decoded so far.
+    warnings: Vec<Warning>,
 }
 
 impl Run<'_, '_> {
@@ -323,8 +354,17 @@ impl Run<'_, '_> {
                     maps.push(Some(done(Status::Cached, detail)));
                 }
                 // Decode stale inputs before anything is written: a bad input fails only its product.
-                None => match load_input(spec) {
+                // The memory checks come first: a map that cannot fit is refused before its
+                // input is decoded or the proxy sampled.
+                None => match check_map(m, i, self.dim, self.budget)
+                    .map_err(|source| BakeError::Limit {
+                        name: format!("input {:?}", spec.name),
+                        source,
+                    })
+                    .and_then(|()| load_input_within(spec, self.budget))
+                {
                     Ok(grid) => {
+                        self.warnings.extend(input_warnings(spec, &grid));
                         stale.push((i, key, grid));
                         maps.push(None);
                     }
@@ -378,6 +418,10 @@ impl Run<'_, '_> {
                 (Status::Failed, "not built: every input failed".to_string())
             }
             None => {
+                check_proxy(m, dim, self.budget).map_err(|source| BakeError::Limit {
+                    name: "proxy".into(),
+                    source,
+                })?;
                 self.emit(Event::Started { name: "proxy" });
                 let data = build_proxy(m, dim, pkey)?;
                 let bytes = encoded(&proxy_path, data.encode())?;
@@ -491,15 +535,21 @@ pub fn bake_one(m: &Manifest, action: &Action<'_>, output: &Path) -> Result<bool
     if current(output, &key, kind, &mut none, None, None).is_some() {
         return Ok(false);
     }
+    let budget = m.budget();
+    let limit = |name: String| move |source| BakeError::Limit { name, source };
     let bytes = match action {
-        Action::Proxy => encoded(output, build_proxy(m, dim, pkey)?.encode())?,
+        Action::Proxy => {
+            check_proxy(m, dim, &budget).map_err(limit("proxy".into()))?;
+            encoded(output, build_proxy(m, dim, pkey)?.encode())?
+        }
         Action::Map { name, proxy } => {
             let i = m.input_index(name).expect("checked above");
             let proxy_data = crate::pipeline::archive::load_proxy_positions(proxy, &pkey)
                 .ok_or_else(|| BakeError::StaleProxy {
                     path: proxy.to_path_buf(),
                 })?;
-            let grid = load_input(&m.inputs[i])?;
+            check_map(m, i, dim, &budget).map_err(limit(format!("input {name:?}")))?;
+            let grid = load_input_within(&m.inputs[i], &budget)?;
             encoded(output, build_map(m, i, &grid, &proxy_data, key)?.encode())?
         }
     };

@@ -3,6 +3,7 @@
 //! the store or writes files, so `bake` and `bake_one` build the same bytes from the same key.
 
 use crate::input::{self, DensityChannel, Grid};
+use crate::limits::Budget;
 use crate::manifest::{InputSpec, Manifest, ProxySource};
 use crate::pipeline::archive::{MapData, ProxyData};
 use crate::pipeline::error::BakeError;
@@ -13,11 +14,18 @@ use otbake_formats::torus::fold;
 use otbake_formats::{Composite, Wrap};
 use rayon::prelude::*;
 
-/// Decodes an input into its density grid.
+/// Decodes an input into its density grid (within the process's default budget).
 pub fn load_input(spec: &InputSpec) -> Result<Grid, BakeError> {
-    input::load_with(&spec.path, spec.density, &spec.options).map_err(|source| BakeError::Input {
-        name: spec.name.clone(),
-        source,
+    load_input_within(spec, &Budget::for_process())
+}
+
+/// Decodes an input into its density grid, refusing what would exceed `budget`.
+pub fn load_input_within(spec: &InputSpec, budget: &Budget) -> Result<Grid, BakeError> {
+    input::load_within(&spec.path, spec.density, &spec.options, budget).map_err(|source| {
+        BakeError::Input {
+            name: spec.name.clone(),
+            source,
+        }
     })
 }
 

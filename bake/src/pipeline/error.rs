@@ -64,6 +64,15 @@ pub enum BakeError {
         /// The proxy archive.
         path: PathBuf,
     },
+    /// A product would need more memory than the budget allows (refused before allocating).
+    #[error("{name}: {source}")]
+    Limit {
+        /// "proxy" or the input name.
+        name: String,
+        /// The estimate, the budget and the fix.
+        #[source]
+        source: crate::limits::LimitError,
+    },
     /// Reading or writing a file failed.
     #[error(transparent)]
     Io(#[from] IoError),

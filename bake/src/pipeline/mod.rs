@@ -11,6 +11,8 @@
 //!   same actions as a BUILD file for the rules in `bake/bazel/otbake.bzl`;
 //! * [`remote`]: products shared through a Bazel HTTP cache (`--remote-cache`), verified before use;
 //! * [`inspect`]: human-readable descriptions and validation of archive bytes;
+//! * [`memory`]: each product's memory estimate, checked against the budget before any work;
+//! * [`warnings`]: inputs accepted that look wrong, reported with what to do;
 //! * [`error`]: [`BakeError`], what a product's failure reports.
 //!
 //! Architecture Invariant: a product's bytes depend only on what its key covers — never on the
@@ -24,12 +26,14 @@ mod build;
 pub mod error;
 pub mod inspect;
 pub mod key;
+pub mod memory;
 pub mod plan;
 pub mod remote;
 pub mod stat;
 pub mod store;
+pub mod warnings;
 
 pub use bake::{bake, bake_one, Action, BakeOptions, BakeReport, Event, Product, Status};
-pub use build::load_input;
+pub use build::{load_input, load_input_within};
 pub use error::BakeError;
 pub use key::{map_key, proxy_key};

@@ -7,7 +7,9 @@
 //! mtime granularity would otherwise go unseen); such files are simply read again.
 //!
 //! The index is an optimization only: losing it (or a concurrent bake overwriting it) costs a rehash,
-//! never a wrong result.
+//! never a wrong result. Its last line is a blake3 checksum of the others: a damaged index (a torn
+//! disk block, a bit flip that still parses as another digest) is dropped whole, since one wrong
+//! input digest trusted would give a product a wrong key.
 
 use crate::fsio::{write_atomic, IoError};
 use std::collections::BTreeMap;
@@ -72,6 +74,11 @@ impl StatIndex {
             entries: BTreeMap::new(),
         };
         let Ok(text) = std::fs::read_to_string(file) else {
+            return index;
+        };
+        let Some(text) = verified(&text) else {
+            // Damaged (or from before the checksum): trusting any of it could give a product a
+            // wrong key, so all of it is dropped; the cost is one rehash.
             return index;
         };
         for line in text.lines() {
@@ -167,8 +174,20 @@ impl StatIndex {
                 e.recorded_ns
             );
         }
+        text += &format!("{CHECKSUM}{}\n", blake3::hash(text.as_bytes()).to_hex());
         write_atomic(file, text.as_bytes())
     }
+}
+
+/// The index file's last line: this prefix and the blake3 hash of every line before it.
+const CHECKSUM: &str = "blake3 ";
+
+/// The entries of an index file whose checksum line matches them, or `None`.
+fn verified(text: &str) -> Option<&str> {
+    let body_end = text.strip_suffix('\n')?.rfind('\n').map_or(0, |i| i + 1);
+    let (body, last) = text.split_at(body_end);
+    let want = last.strip_prefix(CHECKSUM)?.trim_end();
+    (blake3::hash(body.as_bytes()).to_hex().as_str() == want).then_some(body)
 }
 
 fn parse_hex(s: &str) -> Option<[u8; 32]> {
@@ -213,6 +232,35 @@ mod tests {
         // Any edit changes the stamp.
         std::fs::write(&f, b"two").unwrap();
         assert_eq!(idx2.lookup(&f), None);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_damaged_index_is_dropped_whole() {
+        let dir = std::env::temp_dir().join(format!("otbake-statsum-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("a");
+        std::fs::write(&f, b"one").unwrap();
+        let old = std::time::SystemTime::now() - std::time::Duration::from_secs(10);
+        std::fs::File::options()
+            .write(true)
+            .open(&f)
+            .unwrap()
+            .set_modified(old)
+            .unwrap();
+        let mut idx = StatIndex::load(&dir.join("index"));
+        idx.record(&f, [7; 32]);
+        idx.save().unwrap();
+        assert_eq!(
+            StatIndex::load(&dir.join("index")).lookup(&f),
+            Some([7; 32])
+        );
+        // One hex digit of the value changed, the line still parses: the checksum refuses it.
+        let text = std::fs::read_to_string(dir.join("index")).unwrap();
+        std::fs::write(dir.join("index"), text.replacen("07", "08", 1)).unwrap();
+        assert_eq!(StatIndex::load(&dir.join("index")).lookup(&f), None);
+        std::fs::write(dir.join("index"), "").unwrap();
+        assert_eq!(StatIndex::load(&dir.join("index")).lookup(&f), None);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -6,7 +6,8 @@
 //! * [`volume`]: ray-marched images, slices and `.vol` exports of 3D blends;
 //! * [`brdf`]: BRDF blends evaluated and sampled as a BSDF would, their images and MERL exports;
 //! * [`points`]: a map as a `.npy` matrix of proxy and mapped positions;
-//! * [`imageio`]: PNG and EXR output.
+//! * [`imageio`]: PNG and EXR output;
+//! * [`memory`]: what each render will allocate, for the budget check before it starts.
 //!
 //! Architecture Invariant: nothing here bakes or writes archives; renders read archives through
 //! [`Archives`] and the runtime only.
@@ -14,6 +15,7 @@
 pub mod brdf;
 pub mod image;
 pub mod imageio;
+pub mod memory;
 pub mod npy;
 pub mod points;
 pub mod texture;

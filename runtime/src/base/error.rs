@@ -122,7 +122,7 @@ impl fmt::Display for Error {
                 write!(f, "{found} weights given for {expected} maps: give one weight per input")
             }
             Self::BadWeight { index } => {
-                write!(f, "weight {index} is negative or not a number: weights must be finite and >= 0")
+                write!(f, "the weight at index {index} (counting from 0, in manifest order) is negative, NaN or infinite: weights must be finite and >= 0")
             }
             Self::WeightSum { sum } => write!(f, "weights sum to {sum}, they must sum to 1"),
             Self::PointDim { expected, found } => {

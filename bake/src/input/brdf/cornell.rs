@@ -63,6 +63,11 @@ fn embed(theta_i: f64, theta_o: f64, phi_d: f64) -> [f64; 6] {
     [wi[0], wi[1], wi[2], wo[0], wo[1], wo[2]]
 }
 
+/// Bytes of decoded samples and lattice points per byte of a `.brdf` file's text, at most: a
+/// sample line of at least 20 characters becomes one `Sample` and two embedded lattice points
+/// (about 220 bytes); 16 leaves room for the text itself and the vectors' growth.
+pub const BYTES_PER_TEXT_BYTE: u64 = 16;
+
 impl Cornell {
     /// Reads and validates a `.brdf` file.
     pub fn read(path: &Path) -> Result<Self, BrdfError> {

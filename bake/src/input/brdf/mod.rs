@@ -11,7 +11,8 @@ pub mod cie;
 pub mod cornell;
 pub mod merl;
 
-use crate::input::{Grid, InputError};
+use crate::input::{Grid, InputError, InputKind};
+use crate::limits::{file_len, product, Budget};
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -45,6 +46,30 @@ pub enum BrdfError {
 /// Centre of cell `i` of `n` on `[0, extent]`.
 fn centre(i: usize, n: usize, extent: f64) -> f64 {
     (i as f64 + 0.5) / n as f64 * extent
+}
+
+/// Bytes per cell of a BRDF grid while it is made: the `[f64; 3]` values, then the mass and
+/// colour ratio of the grid, and the sampler's cumulative sums (`f64`).
+const GRID_BYTES_PER_CELL: u64 = 24 + 4 + 12 + 8;
+
+/// Checks, before reading the file, that a BRDF at `path` tabulated on a `res³` grid fits
+/// `budget`: the file's own decoded form (a MERL file's three `f64` planes; a Cornell file's samples
+/// and lattice, bounded by [`cornell::BYTES_PER_TEXT_BYTE`] per byte of text) and the grid.
+pub fn check_grid(path: &Path, res: usize, budget: &Budget) -> Result<(), InputError> {
+    let len = file_len(path);
+    let decoded = if InputKind::from_path(path) == Some(InputKind::Merl) {
+        len.saturating_add((3 * merl::PLANE * 8) as u64)
+    } else {
+        product(&[len, cornell::BYTES_PER_TEXT_BYTE])
+    };
+    let r = res as u64;
+    let needed = decoded.saturating_add(product(&[r, r, r, GRID_BYTES_PER_CELL]));
+    budget.check(
+        needed,
+        || format!("BRDF {} on a {res}³ grid", path.display()),
+        "lower `[brdf] resolution` (the paper uses 180)",
+    )?;
+    Ok(())
 }
 
 /// Resamples a BRDF `f(θi, θo, φd) → linear RGB` to a `res³` grid by point sampling at cell centres

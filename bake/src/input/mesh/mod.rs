@@ -18,10 +18,12 @@
 //!   the generalized winding number ([`winding`]), which closes holes the way a soap film
 //!   would, instead of ray parity, which would streak.
 
+pub mod scan;
 pub mod shapes;
 pub mod voxelize;
 pub mod winding;
 
+use crate::limits::{product, Budget, LimitError};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -45,6 +47,8 @@ pub enum MeshError {
         vertex: usize,
         text: String,
     },
+    #[error(transparent)]
+    Limit(#[from] LimitError),
     #[error("OBJ mesh {}: all {faces} triangles have zero area: the surface bounds no volume", path.display())]
     AllDegenerate { path: PathBuf, faces: usize },
     #[error("OBJ mesh {}: no cell center of the {resolution}³ grid is inside the mesh: it is thinner than a cell (raise `mesh.resolution`) or its surface encloses nothing (check that its faces form a closed shell)", path.display())]
@@ -59,7 +63,20 @@ pub struct MeshStats {
     /// Edges (between welded positions) used by other than exactly two triangles: 0 for a closed
     /// manifold surface.
     pub open_edges: usize,
+    /// Faces with fewer than three vertices (`f 1 2`), which bound no area: dropped.
+    pub short_faces: usize,
+    /// The 1-based line of the first of them (0 when there are none).
+    pub first_short_face: usize,
 }
+
+/// Bytes per OBJ vertex while a mesh is read: tobj's `f32` positions (12), ours in `f64` (24), the
+/// weld table's id and hash entry (4 + 40).
+const BYTES_PER_VERTEX: u64 = 12 + 24 + 44;
+
+/// Bytes per triangle while a mesh is read and voxelized: tobj's indices and ours (3 × 12), the
+/// edge table's entries (3 × 24), and the winding-number hierarchy's per-triangle data (at most
+/// 160, see `winding`).
+const BYTES_PER_TRIANGLE: u64 = 36 + 72 + 160;
 
 /// A triangle soup: positions and triangles of vertex indices (no zero-area triangles).
 #[derive(Clone, Debug, PartialEq)]
@@ -85,17 +102,68 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 impl Mesh {
-    /// Reads an OBJ file.
+    /// Reads an OBJ file (within the process's default budget).
     pub fn read(path: &Path) -> Result<Self, MeshError> {
+        Self::read_within(path, &Budget::for_process(), 0)
+    }
+
+    /// Reads an OBJ file, refusing before tobj parses it when its counts (plus `extra` bytes the
+    /// caller will allocate, e.g. the voxel grid) exceed `budget`.
+    pub fn read_within(path: &Path, budget: &Budget, extra: u64) -> Result<Self, MeshError> {
         let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::parse(path, &bytes)
+        Self::parse_within(path, &bytes, budget, extra)
     }
 
     /// Parses OBJ text (`path` is only named in errors). Material libraries are not read.
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<Self, MeshError> {
+        Self::parse_within(path, bytes, &Budget::unlimited(), 0)
+    }
+
+    /// [`Mesh::parse`] within `budget` (see [`Mesh::read_within`]). Faces of one or two vertices
+    /// are dropped (counted in [`MeshStats::short_faces`]); a face index that points at no vertex
+    /// is an error naming its line.
+    pub fn parse_within(
+        path: &Path,
+        bytes: &[u8],
+        budget: &Budget,
+        extra: u64,
+    ) -> Result<Self, MeshError> {
+        let text = String::from_utf8_lossy(bytes);
+        let found = scan::scan(path, &text)?;
+        let needed = product(&[found.vertices, BYTES_PER_VERTEX])
+            .saturating_add(product(&[found.triangles, BYTES_PER_TRIANGLE]))
+            .saturating_add(bytes.len() as u64)
+            .saturating_add(extra);
+        budget.check(
+            needed,
+            || {
+                format!(
+                    "OBJ mesh {}: {} vertices, {} triangles",
+                    path.display(),
+                    found.vertices,
+                    found.triangles
+                )
+            },
+            "simplify the mesh (fewer faces) or lower `[mesh] resolution`",
+        )?;
+        let kept;
+        let bytes = if found.short_faces.is_empty() {
+            bytes
+        } else {
+            kept = scan::without_lines(&text, &found.short_faces);
+            kept.as_bytes()
+        };
+        let mut mesh = Self::parse_faces(path, bytes)?;
+        mesh.stats.short_faces = found.short_faces.len();
+        mesh.stats.first_short_face = found.short_faces.first().copied().unwrap_or(0);
+        Ok(mesh)
+    }
+
+    /// The tobj parse and the checks after it.
+    fn parse_faces(path: &Path, bytes: &[u8]) -> Result<Self, MeshError> {
         let options = tobj::LoadOptions {
             triangulate: true,
             // Positions keep their own indices, so shared vertices stay shared (edges can be
@@ -165,7 +233,7 @@ impl Mesh {
             triangles,
             stats: MeshStats {
                 degenerate,
-                open_edges: 0,
+                ..MeshStats::default()
             },
         };
         mesh.stats.open_edges = mesh.open_edges();

@@ -34,6 +34,7 @@
 use super::winding::Winding;
 use super::{Mesh, MeshError};
 use crate::input::{Grid, InputError};
+use crate::limits::{product, Budget};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -153,7 +154,18 @@ pub fn voxelize(mesh: &Mesh, placement: &Placement, res: usize) -> Vec<f32> {
 
 /// Loads a mesh input as a uniform density grid.
 pub fn load(path: &Path, options: &MeshOptions) -> Result<Grid, InputError> {
-    let mesh = Mesh::read(path)?;
+    load_within(path, options, &Budget::for_process())
+}
+
+/// [`load`], refusing before parsing when the mesh's counts and the `resolution³` grid (its mass,
+/// and the sampler's cumulative sums later) exceed `budget`.
+pub fn load_within(
+    path: &Path,
+    options: &MeshOptions,
+    budget: &Budget,
+) -> Result<Grid, InputError> {
+    let r = options.resolution as u64;
+    let mesh = Mesh::read_within(path, budget, product(&[r, r, r, 4 + 8]))?;
     let place = placement(path, &mesh, options)?;
     let res = options.resolution;
     let mass = voxelize(&mesh, &place, res);

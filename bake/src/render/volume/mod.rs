@@ -175,9 +175,14 @@ pub fn slice<'a>(
         sigma,
         scale,
     } = *s;
-    if !(at.is_finite() && (0.0..=1.0).contains(&at) && (1..=8192).contains(&size)) {
+    if !(1..=8192).contains(&size) {
         return Err(VolumeRenderError::Settings(format!(
-            "--at {at} must be in [0, 1] and --size {size} 1 to 8192"
+            "--size {size}: the image side must be 1 to 8192 pixels"
+        )));
+    }
+    if !(at.is_finite() && (0.0..=1.0).contains(&at)) {
+        return Err(VolumeRenderError::Settings(format!(
+            "--at {at}: the plane's position must be in [0, 1]"
         )));
     }
     let kernel = check_sigma(sigma)?;

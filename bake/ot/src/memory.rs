@@ -1,0 +1,101 @@
+//! What a solve will allocate, estimated before it starts from `n`, the dimension and the
+//! settings: the one place the solvers' memory is written down, so a caller can refuse a problem
+//! that cannot fit before spending minutes on it.
+//!
+//! Each estimate is `n` times a per-point figure plus, for Sinkhorn, the truncated kernel's pairs.
+//! The per-point figures come from the arrays each solver keeps (named below) and were checked
+//! against measured peak resident memory (`bake/lab/examples/solver_memory.rs`;
+//! docs/bench-runs/2026-12-02-solver-memory.md): every estimate is at least the measured peak at the
+//! sizes measured. A solver whose memory changes must change its figure here (a test compares the
+//! estimate with a measured allocation).
+
+use crate::settings::{SlicedMap, SolverSettings};
+use crate::sinkhorn::{SinkhornSettings, DEFAULT_BLUR_SPACING};
+
+/// Exact (Jonker–Volgenant with an auction warm start): `f64` copies of both clouds, the
+/// potentials, assignments, shortest-path labels and predecessors, and the auction's per-point
+/// state; about a dozen `n`-arrays of 8 bytes besides the clouds.
+const EXACT_PER_POINT: u64 = 480;
+/// Per point and per dimension, for every solver: the two clouds in `f64` and the mapped output.
+const PER_COORDINATE: u64 = 2 * 8 + 4 + 8;
+
+/// Sliced flow: the projections, sort keys and indices of both clouds, and the moving copy.
+const SLICED_PER_POINT: u64 = 128;
+/// The snap onto the samples (`map = "assignment"`): its cells, nearest-neighbour candidates and
+/// the re-matching passes' arrays.
+const SNAP_PER_POINT: u64 = 160;
+
+/// Sinkhorn, per point: both clouds' grid hierarchies (all levels), potentials and their previous
+/// values, marginals, the auction's prices and assignments.
+const SINKHORN_PER_POINT: u64 = 200;
+/// Sinkhorn, per kernel pair at the peak: the kernel's columns, costs and values, the transposed
+/// copy a rebuild makes next to the old kernel, and the auction's graph.
+const SINKHORN_PER_PAIR: u64 = 72;
+/// Kernel pairs per point at the default blur and truncation, by dimension (1 to 4): measured
+/// maxima over a stage's kernels on Gaussian → shape problems, with margin.
+const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [32.0, 80.0, 136.0, 224.0];
+/// The solver refuses kernels beyond this many pairs (`sinkhorn::iterate`'s `MAX_PAIRS`), so the
+/// pair term never exceeds it.
+const SINKHORN_MAX_PAIRS: u64 = 1 << 27;
+
+/// Bytes a solve of `n` points in `dim` dimensions with `settings` will allocate at its peak,
+/// beyond the two input clouds (an upper estimate; see the module docs).
+pub fn estimate_bytes(settings: &SolverSettings, n: usize, dim: usize) -> u64 {
+    let n = n as u64;
+    let coords = n.saturating_mul(dim as u64 * PER_COORDINATE);
+    let own = match settings {
+        SolverSettings::Exact(_) => n.saturating_mul(EXACT_PER_POINT),
+        SolverSettings::Sliced(s) => {
+            let snap = match s.map {
+                SlicedMap::Flow => 0,
+                SlicedMap::Assignment => SNAP_PER_POINT,
+            };
+            n.saturating_mul(SLICED_PER_POINT + snap)
+        }
+        SolverSettings::Sinkhorn(s) => {
+            let pairs = sinkhorn_pairs(s, n, dim);
+            n.saturating_mul(SINKHORN_PER_POINT)
+                .saturating_add(pairs.saturating_mul(SINKHORN_PER_PAIR))
+        }
+    };
+    coords.saturating_add(own)
+}
+
+/// The largest kernel Sinkhorn is expected to hold: `SINKHORN_PAIRS_PER_POINT` at the default
+/// blur, scaled by the blur's volume (`(blur_spacing / default)^dim`) and by the truncation's
+/// radius (`(truncate / 8)^(dim / 2)`), capped by the solver's own limit. An explicit `blur` is
+/// taken at the default spacing (its spacing depends on the points).
+pub fn sinkhorn_pairs(s: &SinkhornSettings, n: u64, dim: usize) -> u64 {
+    let d = dim.clamp(1, 4);
+    let default = DEFAULT_BLUR_SPACING[d.min(3)];
+    let spacing = s.blur_spacing.unwrap_or(default);
+    let scale =
+        (spacing / default).powi(d as i32) * (s.truncate / 8.0).max(0.0).powf(d as f64 / 2.0);
+    let per_point = SINKHORN_PAIRS_PER_POINT[d - 1] * scale.max(1.0);
+    ((n as f64 * per_point) as u64).min(SINKHORN_MAX_PAIRS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{ExactSettings, SlicedSettings};
+
+    #[test]
+    fn estimates_grow_linearly_and_rank_the_solvers() {
+        let sk = SolverSettings::Sinkhorn(SinkhornSettings::default());
+        let ex = SolverSettings::Exact(ExactSettings::default());
+        let sl = SolverSettings::Sliced(SlicedSettings::default());
+        for dim in 1..=4 {
+            let a = estimate_bytes(&sk, 10_000, dim);
+            assert_eq!(estimate_bytes(&sk, 20_000, dim), 2 * a);
+            assert!(estimate_bytes(&sl, 10_000, dim) < estimate_bytes(&ex, 10_000, dim));
+            assert!(estimate_bytes(&ex, 10_000, dim) < a);
+        }
+        // 16M 3D points with Sinkhorn: far beyond a build machine (the kernel alone hits its cap).
+        assert!(estimate_bytes(&sk, 16 << 20, 3) > 12 << 30);
+        assert_eq!(
+            sinkhorn_pairs(&SinkhornSettings::default(), 16 << 20, 3),
+            SINKHORN_MAX_PAIRS
+        );
+    }
+}
