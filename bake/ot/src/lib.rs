@@ -86,6 +86,7 @@
 #![warn(missing_docs)]
 
 mod auction;
+pub mod barycenter;
 mod circular;
 mod cost;
 mod error;
