@@ -59,7 +59,7 @@ fn check(
         return Err(BarycenterError::NoInputs);
     }
     check_weights(weights, inputs.len())?;
-    if dim == 0 || x.len() % dim != 0 || x.is_empty() {
+    if dim == 0 || !x.len().is_multiple_of(dim) || x.is_empty() {
         return Err(BarycenterError::Shape {
             which: "support".into(),
             len: x.len(),

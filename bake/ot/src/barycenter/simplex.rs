@@ -190,7 +190,7 @@ pub fn coordinates(
     if maps.is_empty() {
         return Err(BarycenterError::NoInputs);
     }
-    if dim == 0 || proxy.is_empty() || proxy.len() % dim != 0 {
+    if dim == 0 || proxy.is_empty() || !proxy.len().is_multiple_of(dim) {
         return Err(BarycenterError::Shape {
             which: "proxy".into(),
             len: proxy.len(),
