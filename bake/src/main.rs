@@ -4,7 +4,7 @@ mod cli;
 
 use clap::Parser;
 use cli::args::{Cli, Command};
-use cli::{bake, bench, brdf, image, volume};
+use cli::{bake, bench, brdf, fit, image, volume};
 
 fn main() {
     if let Err(e) = run(Cli::parse().command) {
@@ -33,6 +33,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Blend(args) => image::blend(args),
         Command::Grid(args) => image::grid(args),
         Command::Texture(args) => image::texture(args),
+        Command::Fit(args) => fit::fit(args),
         Command::Points(args) => image::points(args),
         Command::BrdfSlice(args) => brdf::slice(args),
         Command::BrdfSpheres(args) => brdf::spheres(args),

@@ -8,6 +8,7 @@ pub mod args;
 pub mod bake;
 pub mod bench;
 pub mod brdf;
+pub mod fit;
 pub mod image;
 pub mod progress;
 pub mod scene;

@@ -14,7 +14,7 @@ use crate::fsio;
 use crate::input::Grid;
 use crate::manifest::Manifest;
 use crate::pipeline::archive::ProxyData;
-use crate::pipeline::build::{build_map, build_proxy, describe_proxy, load_input};
+use crate::pipeline::build::{build_map, build_proxy, load_input};
 use crate::pipeline::error::BakeError;
 use crate::pipeline::key::{map_key, proxy_key};
 use crate::pipeline::stat::StatIndex;
@@ -325,8 +325,9 @@ impl Run<'_, '_> {
                 let data = build_proxy(m, dim, pkey)?;
                 let bytes = encoded(&proxy_path, data.encode())?;
                 publish(&proxy_path, &pkey, &bytes, Some(self.store), self.index)?;
+                let detail = data.description.clone();
                 proxy_data = Some(data);
-                (Status::Built, describe_proxy(m))
+                (Status::Built, detail)
             }
         };
         let product = Product {

@@ -48,8 +48,12 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
     let manifest = abs(&m.path);
     let proxy_out = abs(&m.proxy_archive());
     let mut proxy_inputs = vec![manifest.clone()];
-    if let ProxySource::Input(i) = m.proxy.source {
-        proxy_inputs.push(abs(&m.inputs[i].path));
+    match &m.proxy.source {
+        ProxySource::Input(i) => proxy_inputs.push(abs(&m.inputs[*i].path)),
+        // The barycenter of the inputs reads every input (and, for meshes under the common box,
+        // every mesh: they are all inputs).
+        ProxySource::Barycenter(_) => proxy_inputs.extend(m.inputs.iter().map(|i| abs(&i.path))),
+        ProxySource::Shape(_) => {}
     }
     let mut out = vec![PlannedAction {
         id: "proxy".into(),

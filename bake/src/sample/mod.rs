@@ -7,9 +7,11 @@
 
 mod grid;
 pub mod normal;
+pub mod resolution;
 mod sobol;
 
 pub use grid::importance_sample;
+pub use resolution::{samples_for_resolution, SAMPLES_PER_CELL};
 pub use sobol::Sobol;
 
 use rayon::prelude::*;

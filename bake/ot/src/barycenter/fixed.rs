@@ -173,3 +173,30 @@ pub fn free_support(
         history,
     })
 }
+
+/// The best of [`free_support`] run from each of `starts` (each n points): the free-support
+/// problem is not convex, and the fixed point stops at the local optimum its start leads to. For
+/// two inputs, starting from either input's samples gives the McCann interpolant of their exact
+/// matching in one step, the global optimum; for more, several starts (the inputs themselves, a
+/// proxy) find a lower objective than any one of them. Ties keep the earlier start.
+pub fn free_support_from(
+    wrap: Wrap,
+    dim: usize,
+    inputs: &[&[f32]],
+    weights: &[f64],
+    starts: &[&[f32]],
+    solver: &SolverSettings,
+    settings: &FixedPointSettings,
+) -> Result<Barycenter, BarycenterError> {
+    let mut best: Option<Barycenter> = None;
+    for start in starts {
+        let b = free_support(wrap, dim, inputs, weights, start, solver, settings)?;
+        if best.as_ref().is_none_or(|x| b.objective < x.objective) {
+            best = Some(b);
+        }
+    }
+    best.ok_or(BarycenterError::Settings {
+        field: "starts",
+        reason: "give at least one start".into(),
+    })
+}

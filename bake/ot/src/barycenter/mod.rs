@@ -33,7 +33,9 @@ mod simplex;
 mod tests;
 
 pub use error::BarycenterError;
-pub use fixed::{free_support, objective, Barycenter, FixedPointSettings, Objective};
+pub use fixed::{
+    free_support, free_support_from, objective, Barycenter, FixedPointSettings, Objective,
+};
 pub use simplex::{coordinates, simplex_least_squares, Coordinates};
 
 use crate::cost::det_sum;
