@@ -73,6 +73,24 @@ fn two_inputs_reach_the_mccann_lower_bound() {
         )
         .unwrap();
         assert!(fp.converged);
+        // Among several starts the best is kept: a far start does not spoil the input's.
+        let far = gaussian(300, [0.8, 0.2], [0.02, 0.02], 7);
+        let best = free_support_from(
+            Wrap::Clamp,
+            2,
+            &[&a, &b],
+            &w,
+            &[&far, &a],
+            &exact(),
+            &FixedPointSettings::default(),
+        )
+        .unwrap();
+        assert!(
+            best.objective <= fp.objective * (1.0 + 1e-12),
+            "{} vs {}",
+            best.objective,
+            fp.objective
+        );
         assert!(
             (fp.objective - bound).abs() <= 1e-6 * d2,
             "t {t}: {} vs {bound}",
