@@ -208,3 +208,43 @@ fn bad_barycenter_settings_are_errors_at_their_line() {
     let e = Manifest::parse(&dir.join("m.toml"), &text).unwrap_err();
     assert!(e.message.contains("only to kind = \"barycenter\""), "{e}");
 }
+
+#[test]
+fn a_periodic_barycenter_proxy_lives_on_the_torus() {
+    let dir = scratch("bary-proxy-periodic");
+    let mut b = String::from(
+        "[output]\ndir = \"out\"\n[proxy]\nkind = \"barycenter\"\nsamples = 300\n[solver]\nkind = \"exact\"\n",
+    );
+    for (name, file) in [
+        ("onyx", "marble_onyx003_ambientcg_1k.jpg"),
+        ("pebbles", "pebbles_stonewall_godot.png"),
+    ] {
+        b += &format!(
+            "[[input]]\nname = \"{name}\"\npath = \"{}\"\nwrap = \"periodic\"\n",
+            shared_data().join("textures").join(file).display()
+        );
+    }
+    let (m, _) = run(&write_manifest(&dir, "m.toml", &b));
+    assert_eq!(m.wrap(), Wrap::Periodic);
+    let archives = Archives::load(&m).unwrap();
+    let proxy = archives.proxy().unwrap();
+    assert_eq!(proxy.wrap(), Wrap::Periodic);
+    for i in 0..proxy.n() {
+        let p = proxy.position(i).unwrap();
+        assert!(
+            (0.0..1.0).contains(&p[0]) && (0.0..1.0).contains(&p[1]),
+            "{p:?}"
+        );
+    }
+    // At its weights the blend is the torus barycenter: the McCann bound on the torus.
+    let (blend, inputs) = clouds(&m, &[0.5, 0.5]);
+    let refs: Vec<&[f32]> = inputs.iter().map(Vec::as_slice).collect();
+    let got = objective(Wrap::Periodic, 2, &blend, &refs, &[0.5, 0.5], &exact()).unwrap();
+    let (d2, _) = w2_sq(Wrap::Periodic, 2, refs[0], refs[1], &exact()).unwrap();
+    assert!(
+        got.value / (0.25 * d2) - 1.0 <= 1e-3,
+        "{} vs {}",
+        got.value,
+        0.25 * d2
+    );
+}
