@@ -10,9 +10,11 @@ use crate::fsio::write_atomic;
 use crate::input::{load, DensityChannel};
 use crate::proxy::{proxy_points, ProxyShape};
 use crate::sample::{importance_sample, map_sobol_points, normal, SampleError, Sobol};
+use otbake_lab::bench::barycenter::CloudHost;
 use otbake_lab::bench::{Host, Instance};
 use std::path::Path;
 
+pub use otbake_lab::bench::barycenter::{BarycenterOptions, BarycenterReport};
 pub use otbake_lab::bench::{
     chart_png, gaussian_case_map, to_csv, to_markdown, BenchError, BenchOptions, BenchReport, Case,
     Event, Row, SolverKind, TerminalProgress, BLOB_CENTERS, BLOB_SIGMA, CSV_HEADER,
@@ -29,8 +31,49 @@ pub fn run(
     otbake_lab::bench::run(options, &Baker, on_event)
 }
 
+/// Runs `otbake bench --barycenters` ([`otbake_lab::bench::barycenter`]): proxy blends against
+/// true barycenters, and a blend's rendered error against n, on the baker's clouds.
+pub fn run_barycenters(
+    options: &BarycenterOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<BarycenterReport, BenchError> {
+    otbake_lab::bench::barycenter::run(options, &Baker, progress)
+}
+
 /// The baker as the bench's host: its codecs and samplers, its atomic writes.
 struct Baker;
+
+impl CloudHost for Baker {
+    fn shape(&self, name: &str, path: &Path, n: usize) -> Result<Vec<f32>, BenchError> {
+        let grid = load(path, DensityChannel::Inverted).map_err(|source| BenchError::Input {
+            name: name.to_string(),
+            source: Box::new(source),
+        })?;
+        // Seed 0, as a manifest's input without `seed` is sampled.
+        importance_sample(&grid, n, 0).map_err(|source| BenchError::Sample {
+            case: name.to_string(),
+            n,
+            source: Box::new(source),
+        })
+    }
+
+    fn proxy(&self, kind: &str, n: usize) -> Result<Vec<f32>, BenchError> {
+        let shape = match kind {
+            "gaussian" => ProxyShape::DEFAULT_GAUSSIAN,
+            "uniform" => ProxyShape::Uniform,
+            _ => ProxyShape::DEFAULT_SPIRAL,
+        };
+        proxy_points(&shape, 2, n, 0).map_err(|source| BenchError::Sample {
+            case: format!("{kind} proxy"),
+            n,
+            source: Box::new(source),
+        })
+    }
+
+    fn write(&self, path: &Path, bytes: &[u8]) -> Result<(), BenchError> {
+        Host::write(self, path, bytes)
+    }
+}
 
 impl Host for Baker {
     fn instance(&self, case: &Case, n: usize) -> Result<Instance, BenchError> {

@@ -64,6 +64,7 @@
 //! environment; the `otbake` binary (`main.rs` and its `cli` modules) does all three.
 
 pub mod bench;
+pub mod fit;
 pub mod fsio;
 pub mod input;
 pub mod limits;

@@ -4,7 +4,7 @@ mod cli;
 
 use clap::{CommandFactory, FromArgMatches};
 use cli::args::{Cli, Command};
-use cli::{bake, bench, brdf, budget, image, volume};
+use cli::{bake, bench, brdf, budget, fit, image, volume};
 
 fn main() {
     let matches = Cli::command()
@@ -38,6 +38,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Blend(args) => image::blend(args),
         Command::Grid(args) => image::grid(args),
         Command::Texture(args) => image::texture(args),
+        Command::Fit(args) => fit::fit(args),
         Command::Points(args) => image::points(args),
         Command::BrdfSlice(args) => brdf::slice(args),
         Command::BrdfSpheres(args) => brdf::spheres(args),

@@ -25,6 +25,8 @@ const KEYS: &[(&str, &[&str])] = &[
             "thickness",
             "input",
             "leaf_size",
+            "weights",
+            "iterations",
         ],
     ),
     (
@@ -65,7 +67,11 @@ const KEYS: &[(&str, &[&str])] = &[
 
 /// Every value of the parser's enumerated keys: (section, key, values).
 const VALUES: &[(&str, &str, &[&str])] = &[
-    ("proxy", "kind", &["gaussian", "uniform", "spiral", "input"]),
+    (
+        "proxy",
+        "kind",
+        &["gaussian", "uniform", "spiral", "input", "barycenter"],
+    ),
     ("solver", "kind", &["sinkhorn", "exact", "sliced"]),
     ("solver", "map", &["assignment", "barycentric", "flow"]),
     ("input", "density", &["luminance", "inverted", "alpha"]),

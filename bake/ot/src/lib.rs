@@ -60,6 +60,10 @@
 //! problem (the metric enters only through the cost), `sliced` runs its torus variant; maps come
 //! back as lifts `x + δ`, `|δ| <= ½` per axis, so interpolating them follows the geodesic.
 //!
+//! [`barycenter`] builds on [`solve_in`]: W2 between clouds, the McCann interpolant, the
+//! free-support barycenter fixed point and its objective, proxy blends as clouds, and weights
+//! fitted over the simplex to a target's map.
+//!
 //! [`metrics`] measures how far a map is from the optimum (cost ratio, L2-UVP against a reference
 //! map such as the closed-form [`metrics::GaussianMap`], sliced W2 to the target).
 //!
@@ -86,6 +90,7 @@
 #![warn(missing_docs)]
 
 mod auction;
+pub mod barycenter;
 mod circular;
 mod cost;
 mod error;

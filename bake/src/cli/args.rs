@@ -2,7 +2,7 @@
 //!
 //! Each subcommand's flags live next to the function that runs it, in its family's module.
 
-use super::{bake, bench, brdf, image, volume};
+use super::{bake, bench, brdf, fit, image, volume};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -38,6 +38,9 @@ pub enum Command {
     Grid(image::GridArgs),
     /// Render a texture whose blend weights vary per pixel: perlin:SCALE,SEED, zigzag, or a,b,..
     Texture(image::TextureArgs),
+    /// Fit the weights whose blend is closest to a target asset (least squares over the simplex on
+    /// the maps' displacement fields); print weights and residual, optionally render the blend.
+    Fit(fit::FitArgs),
     /// Write an input's map as an n × 2d float32 .npy: proxy position, then mapped position (tree order).
     Points(image::PointsArgs),
     /// Render a θi slice of a BRDF blend on the unit disk (light from the right; paper Fig. 14 right).

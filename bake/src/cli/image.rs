@@ -26,7 +26,7 @@ pub struct ImageArgs {
 }
 
 impl ImageArgs {
-    fn settings(&self) -> Result<RenderSettings> {
+    pub(super) fn settings(&self) -> Result<RenderSettings> {
         if !(self.sigma.is_finite() && self.sigma > 0.0) {
             bail!("--sigma {}: use a positive number of pixels", self.sigma);
         }

@@ -10,6 +10,7 @@ pub mod bake;
 pub mod bench;
 pub mod brdf;
 pub mod budget;
+pub mod fit;
 pub mod image;
 pub mod progress;
 pub mod scene;

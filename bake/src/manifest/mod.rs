@@ -69,6 +69,21 @@ pub enum ProxySource {
     Shape(ProxyShape),
     /// Another input's samples (2-way blending without proxy, paper eq. 3): index into `inputs`.
     Input(usize),
+    /// The free-support Wasserstein barycenter of every input's samples (`kind = "barycenter"`).
+    Barycenter(BarycenterProxy),
+}
+
+/// `kind = "barycenter"`: the proxy is the free-support barycenter of the inputs' own samples
+/// (the samples their maps go to), computed by the fixed point of `otbake_ot::barycenter` with the
+/// manifest's `[solver]`, started from the Gaussian proxy (uniform on the torus) of the same `n`
+/// and seed. At its weights a blend is (up to the solver) that barycenter; its key covers every
+/// input, so adding or editing an input rebakes the proxy and every map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BarycenterProxy {
+    /// One weight per input, on the simplex (default: equal).
+    pub weights: Vec<f64>,
+    /// Most fixed-point iterations (`proxy.iterations`, default 30).
+    pub iterations: u32,
 }
 
 /// The `[proxy]` section.
@@ -78,6 +93,8 @@ pub struct ProxySpec {
     pub source: ProxySource,
     /// Points in the proxy and in every input.
     pub samples: usize,
+    /// The output resolution `samples` was derived from (`samples = { resolution = N }`), if any.
+    pub resolution: Option<u64>,
     /// Seed of the proxy's low-discrepancy points.
     pub seed: u64,
     /// Largest leaf of the query tree.

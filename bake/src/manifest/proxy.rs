@@ -1,9 +1,13 @@
 //! The `[proxy]` section: the shared distribution every map starts from, and the query tree's leaves.
 
 use super::error::Locator;
-use super::raw::{ProxyKind, RawProxy};
-use super::{InputSpec, ManifestError, ProxySource, ProxySpec, DEFAULT_LEAF_SIZE, MAX_SAMPLES};
+use super::raw::{ProxyKind, RawProxy, RawSamples};
+use super::{
+    BarycenterProxy, InputSpec, ManifestError, ProxySource, ProxySpec, DEFAULT_LEAF_SIZE,
+    MAX_SAMPLES,
+};
 use crate::proxy::ProxyShape;
+use crate::sample::resolution::{samples_for_resolution, SAMPLES_PER_CELL};
 use otbake_formats::Wrap;
 use std::ops::Range;
 use toml::Spanned;
@@ -15,7 +19,7 @@ pub(super) fn proxy(
     p: &RawProxy,
     inputs: &[InputSpec],
 ) -> Result<ProxySpec, ManifestError> {
-    let samples = *p.samples.get_ref();
+    let (samples, resolution) = samples(loc, p, inputs)?;
     if samples == 0 || samples > MAX_SAMPLES {
         return Err(loc.at(
             Some(p.samples.span()),
@@ -50,6 +54,18 @@ pub(super) fn proxy(
     }
     if kind != ProxyKind::Input {
         only(p.input.as_ref().map(|s| s.span()), "input", "\"input\"")?;
+    }
+    if kind != ProxyKind::Barycenter {
+        only(
+            p.weights.as_ref().map(|s| s.span()),
+            "weights",
+            "\"barycenter\"",
+        )?;
+        only(
+            p.iterations.as_ref().map(|s| s.span()),
+            "iterations",
+            "\"barycenter\"",
+        )?;
     }
     let positive = |v: &Option<Spanned<f64>>, name: &str, default: f64| match v {
         Some(s) if !(s.get_ref().is_finite() && *s.get_ref() > 0.0) => Err(loc.at(
@@ -98,13 +114,77 @@ pub(super) fn proxy(
             };
             ProxySource::Input(index)
         }
+        ProxyKind::Barycenter => ProxySource::Barycenter(barycenter(loc, p, inputs)?),
     };
     let proxy = ProxySpec {
         source,
         samples: samples as usize,
+        resolution,
         seed: p.seed.unwrap_or(0),
         leaf_size,
     };
 
     Ok(proxy)
+}
+
+/// `proxy.samples`: the count given, or the one the resolution rule derives
+/// ([`samples_for_resolution`]) from the first input's dimension; with the resolution.
+fn samples(
+    loc: &Locator<'_>,
+    p: &RawProxy,
+    inputs: &[InputSpec],
+) -> Result<(u64, Option<u64>), ManifestError> {
+    match *p.samples.get_ref() {
+        RawSamples::Count(n) => Ok((n, None)),
+        RawSamples::Resolution(r) => {
+            let dim = inputs.first().map_or(2, |i| i.kind.dim());
+            match samples_for_resolution(r, dim).filter(|&n| r > 0 && n <= MAX_SAMPLES) {
+                Some(n) => Ok((n, Some(r))),
+                None => Err(loc.at(
+                    Some(p.samples.span()),
+                    format!(
+                        "`proxy.samples` = {{ resolution = {r} }} is out of range: {SAMPLES_PER_CELL} samples per cell of a {dim}D output of {r} per side must be 1 to {MAX_SAMPLES}; lower the resolution, or give a count (samples = N)"
+                    ),
+                )),
+            }
+        }
+    }
+}
+
+/// `kind = "barycenter"`: its weights (one per input on the simplex, default equal) and iterations.
+fn barycenter(
+    loc: &Locator<'_>,
+    p: &RawProxy,
+    inputs: &[InputSpec],
+) -> Result<BarycenterProxy, ManifestError> {
+    let weights = match &p.weights {
+        None => vec![1.0 / inputs.len() as f64; inputs.len()],
+        Some(w) => {
+            otbake_ot::barycenter::check_weights(w.get_ref(), inputs.len()).map_err(|e| {
+                let reason = match e {
+                    otbake_ot::barycenter::BarycenterError::Weights { reason } => reason,
+                    other => other.to_string(),
+                };
+                loc.at(
+                    Some(w.span()),
+                    format!("`proxy.weights`: {reason}; one per [[input]], in manifest order, e.g. [0.25, 0.75], or leave it out for equal weights"),
+                )
+            })?;
+            w.get_ref().clone()
+        }
+    };
+    let iterations = match &p.iterations {
+        Some(i) if !(1..=1000).contains(i.get_ref()) => {
+            return Err(loc.at(
+                Some(i.span()),
+                "`proxy.iterations` must be 1 to 1000 (default 30)".into(),
+            ));
+        }
+        Some(i) => *i.get_ref(),
+        None => otbake_ot::barycenter::FixedPointSettings::default().max_iterations,
+    };
+    Ok(BarycenterProxy {
+        weights,
+        iterations,
+    })
 }

@@ -135,19 +135,67 @@ pub(super) enum ProxyKind {
     Uniform,
     Spiral,
     Input,
+    Barycenter,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawProxy {
     pub(super) kind: Spanned<ProxyKind>,
-    pub(super) samples: Spanned<u64>,
+    pub(super) samples: Spanned<RawSamples>,
     pub(super) seed: Option<u64>,
     pub(super) sigma: Option<Spanned<f64>>,
     pub(super) turns: Option<Spanned<f64>>,
     pub(super) thickness: Option<Spanned<f64>>,
     pub(super) input: Option<Spanned<String>>,
     pub(super) leaf_size: Option<Spanned<u32>>,
+    pub(super) weights: Option<Spanned<Vec<f64>>>,
+    pub(super) iterations: Option<Spanned<u32>>,
+}
+
+/// `proxy.samples`: a count, or `{ resolution = N }` (the output resolution the bake is for).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum RawSamples {
+    Count(u64),
+    Resolution(u64),
+}
+
+impl<'de> Deserialize<'de> for RawSamples {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = RawSamples;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a sample count (e.g. 250000) or a table { resolution = N }")
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<RawSamples, E> {
+                Ok(RawSamples::Count(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<RawSamples, E> {
+                u64::try_from(v).map(RawSamples::Count).map_err(|_| {
+                    E::custom(format!(
+                        "samples = {v}: use a positive count, or {{ resolution = N }}"
+                    ))
+                })
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<RawSamples, A::Error> {
+                let mut resolution = None;
+                while let Some(key) = map.next_key::<String>()? {
+                    if key != "resolution" {
+                        return Err(serde::de::Error::unknown_field(&key, &["resolution"]));
+                    }
+                    resolution = Some(map.next_value::<u64>()?);
+                }
+                resolution.map(RawSamples::Resolution).ok_or_else(|| {
+                    serde::de::Error::custom("samples = { ... } needs `resolution = N`, the output resolution in pixels (voxels) per side")
+                })
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]

@@ -15,11 +15,11 @@ use crate::input::Grid;
 use crate::limits::Budget;
 use crate::manifest::Manifest;
 use crate::pipeline::archive::ProxyData;
-use crate::pipeline::build::{build_map, build_proxy, describe_proxy, load_input_within};
+use crate::pipeline::build::{build_map, build_proxy, load_input_within};
 use crate::pipeline::error::BakeError;
 use crate::pipeline::key::{map_key, proxy_key};
-use crate::pipeline::remote::RemoteCache;
 use crate::pipeline::memory::{check_map, check_proxy};
+use crate::pipeline::remote::RemoteCache;
 use crate::pipeline::stat::StatIndex;
 use crate::pipeline::store::{self, Store};
 use crate::pipeline::warnings::{input_warnings, manifest_warnings, Warning};
@@ -427,8 +427,9 @@ impl Run<'_, '_> {
                 let bytes = encoded(&proxy_path, data.encode())?;
                 publish(&proxy_path, &pkey, &bytes, Some(self.store), self.index)?;
                 share(self.opts.remote, ArchiveKind::Proxy, &pkey, &bytes);
+                let detail = data.description.clone();
                 proxy_data = Some(data);
-                (Status::Built, describe_proxy(m))
+                (Status::Built, detail)
             }
         };
         let product = Product {

@@ -40,6 +40,13 @@ pub enum BakeError {
         #[source]
         source: SolveError,
     },
+    /// The barycenter proxy's fixed point failed (a solve inside it, usually).
+    #[error("proxy (kind = \"barycenter\"): {source}")]
+    Barycenter {
+        /// Why.
+        #[source]
+        source: otbake_ot::barycenter::BarycenterError,
+    },
     /// The inputs do not share one dimension.
     #[error("input {name:?} is {found}-dimensional but the others are {expected}-dimensional: blend inputs of one kind per manifest")]
     MixedDimensions {

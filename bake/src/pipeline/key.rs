@@ -114,6 +114,25 @@ pub fn proxy_key(m: &Manifest, dim: usize, index: &mut StatIndex) -> Result<[u8;
             k.field("shape", b"input");
             input_identity(&mut k, &m.inputs[*i], index)?;
         }
+        ProxySource::Barycenter(b) => {
+            // The fixed point reads every input's samples and runs the manifest's solver: all of
+            // it is in the key, so adding, removing or editing an input rebakes the proxy (and
+            // with it every map).
+            k.field("shape", b"barycenter")
+                .field(
+                    "barycenter-rule",
+                    crate::pipeline::build::BARYCENTER_RULE.as_bytes(),
+                )
+                .field("iterations", &b.iterations.to_le_bytes())
+                .field("solver", m.solver.fingerprint().as_bytes())
+                .field("inputs", &(m.inputs.len() as u64).to_le_bytes());
+            for w in &b.weights {
+                k.field("weight", &w.to_bits().to_le_bytes());
+            }
+            for spec in &m.inputs {
+                input_identity(&mut k, spec, index)?;
+            }
+        }
     }
     Ok(k.finish())
 }

@@ -62,11 +62,14 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
     let manifest = abs(&m.path);
     let proxy_out = abs(&m.proxy_archive());
     let mut proxy_inputs = vec![manifest.clone()];
-    let proxy_file = match m.proxy.source {
-        ProxySource::Input(i) => Some(abs(&m.inputs[i].path)),
-        ProxySource::Shape(_) => None,
+    // The files the proxy's key hashes: an input proxy's file; for the barycenter, every input
+    // (and, for meshes under the common box, every mesh: they are all inputs).
+    let proxy_files: Vec<PathBuf> = match &m.proxy.source {
+        ProxySource::Input(i) => vec![abs(&m.inputs[*i].path)],
+        ProxySource::Barycenter(_) => m.inputs.iter().map(|i| abs(&i.path)).collect(),
+        ProxySource::Shape(_) => Vec::new(),
     };
-    proxy_inputs.extend(proxy_file.clone());
+    proxy_inputs.extend(proxy_files.iter().cloned());
     let mut out = vec![PlannedAction {
         id: "proxy".into(),
         argv: vec![
@@ -88,9 +91,11 @@ pub fn actions(m: &Manifest, otbake: &Path) -> Vec<PlannedAction> {
         if let (InputKind::Mesh, Fit::Common(all)) = (input.kind, &input.options.mesh.fit) {
             inputs.extend(all.iter().filter(|p| **p != input.path).map(|p| abs(p)));
         }
-        // A map's key holds the proxy's key, which hashes an input proxy's file.
-        if let Some(f) = proxy_file.as_ref().filter(|f| !inputs.contains(f)) {
-            inputs.push(f.clone());
+        // A map's key holds the proxy's key, which hashes the proxy's files.
+        for f in &proxy_files {
+            if !inputs.contains(f) {
+                inputs.push(f.clone());
+            }
         }
         inputs.push(proxy_out.clone());
         out.push(PlannedAction {

@@ -6,12 +6,14 @@
 //! `i`), and point `i` depends only on `(seed, i)`: the output is the same for any thread count.
 
 mod grid;
+pub mod resolution;
 mod sobol;
 
 /// The standard normal's functions, shared with the BRDF kernel (one copy, in `otbake-brdf`).
 pub use otbake_brdf::normal;
 
 pub use grid::importance_sample;
+pub use resolution::{samples_for_resolution, SAMPLES_PER_CELL};
 pub use sobol::Sobol;
 
 use rayon::prelude::*;

@@ -6,9 +6,9 @@ use super::{BenchError, Row, SolverKind};
 /// DejaVu Sans (Bitstream Vera license, `bake/lab/assets/DejaVuSans-LICENSE.txt`), compiled in so charts
 /// need no system fonts: plotters' `ab_glyph` backend draws only registered fonts.
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
-const FONT_FAMILY: &str = "sans-serif";
+pub(super) const FONT_FAMILY: &str = "sans-serif";
 
-fn register_font() -> Result<(), BenchError> {
+pub(super) fn register_font() -> Result<(), BenchError> {
     static REGISTERED: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
     REGISTERED
         .get_or_init(|| {

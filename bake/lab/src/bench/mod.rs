@@ -31,6 +31,7 @@
 //! sampler and proxy, and this crate depends on no part of the baker. `otbake::bench::run` is
 //! [`run`] with the baker as host.
 
+pub mod barycenter;
 mod chart;
 mod engine;
 mod progress;
@@ -244,6 +245,9 @@ pub enum BenchError {
         #[source]
         source: otbake_ot::metrics::MetricError,
     },
+    /// A barycenter, distance or map of `--barycenters` could not be computed.
+    #[error("barycenter bench: {0}")]
+    Barycenter(String),
     /// plotters or the PNG encoder failed.
     #[error("cannot draw the chart: {0}")]
     Chart(String),
