@@ -5,9 +5,9 @@
 use crate::errors::{error, Kind};
 use otbake::{bake as run_bake, BakeError, BakeOptions, Manifest, Status};
 use pyo3::prelude::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-fn manifest(path: &PathBuf) -> PyResult<Manifest> {
+fn manifest(path: &Path) -> PyResult<Manifest> {
     Manifest::load(path).map_err(|e| error(Kind::Manifest, e.to_string()))
 }
 

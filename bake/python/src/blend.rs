@@ -160,6 +160,16 @@ type Values<'py> = (
     Bound<'py, PyArray2<f32>>,
 );
 
+/// Range values of a batch: count `(n,)`, mass `(n,)`, color `(n, 3)`.
+type RangeValues<'py> = (
+    Bound<'py, PyArray1<u32>>,
+    Bound<'py, PyArray1<f32>>,
+    Bound<'py, PyArray2<f32>>,
+);
+
+/// Samples of a batch: positions `(n, dim)`, colors `(n, 3)`.
+type Samples<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<f32>>);
+
 /// k maps of one proxy, ready to be queried with any weights: `Blend(proxy, maps)`.
 ///
 /// Queries take `weights` as a sequence of k numbers (or a float32 array `(k,)`) for the whole
@@ -272,11 +282,7 @@ impl Blend {
         weights: &Bound<'py, PyAny>,
         lo: &Bound<'py, PyAny>,
         hi: &Bound<'py, PyAny>,
-    ) -> PyResult<(
-        Bound<'py, PyArray1<u32>>,
-        Bound<'py, PyArray1<f32>>,
-        Bound<'py, PyArray2<f32>>,
-    )> {
+    ) -> PyResult<RangeValues<'py>> {
         let (k, d) = (self.parts.k(), self.dim()?);
         let lo = matrix::<f32>(lo, "lo", "float32", d)?;
         let hi = matrix::<f32>(hi, "hi", "float32", d)?;
@@ -308,7 +314,7 @@ impl Blend {
         py: Python<'py>,
         weights: &Bound<'py, PyAny>,
         indices: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<f32>>)> {
+    ) -> PyResult<Samples<'py>> {
         let (k, d) = (self.parts.k(), self.dim()?);
         let idx = vector::<u32>(indices, "indices", "uint32")?;
         let n = idx.rows;

@@ -4,10 +4,9 @@
 the ``(θi, θo, φd)`` cube) times ``cos θo``. Mitsuba samples ``wo`` for a given ``wi``, while the
 runtime's sampler draws the pair ``(wi, wo)`` jointly (``BrdfBlend.sample``), so the BSDF
 samples from the blend's conditional in ``wi``'s θ band instead: for each of ``theta_bins``
-bands of θi it tabulates ``f_Y(wi, wo) cos θo`` (runtime evaluations, the mean of 2×2 points per
-cell) on ``theta_cells × phi_cells`` cells of ``(cos θo, φd)`` (rings of equal solid angle), picks a cell in proportion to its
-integral, then a direction uniformly in solid angle inside it (``φd``'s sign with probability ½),
-and mixes in a cosine-weighted lobe with probability ``cosine_fraction`` so that no direction where
+bands of θi it tabulates ``f_Y(wi, wo) cos θo`` (runtime evaluations) on the nodes of a
+``theta_cells × phi_cells`` grid over ``(1 − cos θo, φd)``, samples the bilinear interpolation of
+those values exactly (:class:`Tables`; ``φd``'s sign with probability ½), and mixes in a cosine-weighted lobe with probability ``cosine_fraction`` so that no direction where
 the BRDF is positive has zero pdf. ``pdf`` is that mixture's density, exactly — and 0 where the
 BRDF is 0, where Mitsuba counts a sample as failed — so sampling and pdf agree (Mitsuba's χ² test
 checks it) and ``weight = eval / pdf`` is unbiased.
@@ -42,9 +41,37 @@ def _direction(theta, phi):
     return np.ascontiguousarray(np.stack([s * np.cos(phi), s * np.sin(phi), np.cos(theta)], axis=1))
 
 
+def _linear(a, b, u):
+    """Inverse CDF on [0, 1] of the density proportional to ``a (1 - t) + b t``."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = a - b
+    safe = np.abs(d) > 1e-12 * np.maximum(a + b, 1e-300)
+    root = np.sqrt(np.maximum(a * a * (1 - u) + b * b * u, 0.0))
+    t = np.where(safe, (a - root) / np.where(safe, d, 1.0), u)
+    return np.clip(t, 0.0, 1.0)
+
+
+def _pick(mass, u):
+    """Cell index by ``mass`` (rows of cell masses) and the remainder of ``u`` in [0, 1)."""
+    cdf = np.cumsum(mass, axis=-1)
+    total = cdf[..., -1]
+    x = u * total
+    cell = np.minimum((cdf <= x[..., None]).sum(axis=-1), mass.shape[-1] - 1)
+    start = np.where(cell > 0, np.take_along_axis(cdf, np.maximum(cell - 1, 0)[..., None], -1)[..., 0], 0.0)
+    m = np.take_along_axis(mass, cell[..., None], -1)[..., 0]
+    return cell, np.clip((x - start) / np.where(m > 0, m, 1.0), 0.0, np.nextafter(1.0, 0))
+
+
 class Tables:
-    """The per-θi-band sampling tables of one BRDF blend and weights (pure numpy and runtime
-    calls, no Mitsuba: the tests check it directly)."""
+    """The sampling densities of one BRDF blend and weights, one per θi band (numpy and runtime
+    calls only, no Mitsuba: the tests check it directly).
+
+    A band's density of ``wo`` is bilinear on a grid of nodes over ``x = 1 − cos θo`` and
+    ``y = φd / π`` (so continuous: Mitsuba's χ² test integrates it cell by cell), with node values
+    ``f_Y(wi, wo) cos θo`` from the runtime at the band's centre θi; in solid angle it is
+    ``q(x, y) / 2π`` (``φd``'s two signs, ``dω = dx · π dy`` per sign). It is sampled exactly:
+    ``x`` from its piecewise-linear marginal, then ``y`` from the piecewise-linear conditional.
+    """
 
     def __init__(self, brdf, weights, theta_bins=16, theta_cells=32, phi_cells=32, cosine_fraction=0.1):
         self.brdf, self.weights = brdf, weights
@@ -54,81 +81,78 @@ class Tables:
             raise otbake.ArgumentError(
                 "otbake_brdf: theta_bins, theta_cells and phi_cells must be >= 1 and 0 < cosine_fraction <= 1"
             )
-        # Rings of equal solid angle: cos θo uniform in [0, 1] (first ring at the pole).
-        self.cos_edges = 1.0 - np.arange(self.nt + 1) / self.nt
-        self.dphi = np.pi / self.np_
-        # Solid angle of one (θo, φd) cell on one side of the plane of incidence.
-        self.area = np.repeat((self.cos_edges[:-1] - self.cos_edges[1:])[:, None], self.np_, axis=1) * self.dphi
-        self.prob = {}
-        self.cdf = {}
+        self.nodes = {}
 
     def band(self, theta_i):
         return np.clip((theta_i / (np.pi / 2) * self.nb).astype(np.int64), 0, self.nb - 1)
 
     def table(self, b):
-        if b not in self.prob:
+        """Node values of band ``b``, normalized so the bilinear density integrates to 1 over
+        the unit square (all zeros if the BRDF is 0 there)."""
+        if b not in self.nodes:
             theta_i = (b + 0.5) * (np.pi / 2) / self.nb
-            # 2×2 points per cell, equally spaced in cos θo and φd.
-            sub = np.array([0.25, 0.75])
-            ct = self.cos_edges[:-1, None] - sub[None, :] * (self.cos_edges[:-1] - self.cos_edges[1:])[:, None]
-            pd = (np.arange(self.np_)[:, None] + sub[None, :]) * self.dphi
-            to = np.arccos(np.clip(ct, 0.0, 1.0))  # (nt, 2)
-            T, P = np.meshgrid(to.ravel(), pd.ravel(), indexing="ij")  # (2nt, 2np)
-            wo = _direction(T.ravel(), P.ravel())
+            x = np.arange(self.nt + 1) / self.nt
+            y = np.arange(self.np_ + 1) / self.np_
+            X, Y = np.meshgrid(x, y, indexing="ij")
+            wo = _direction(np.arccos(np.clip(1.0 - X.ravel(), 0.0, 1.0)), Y.ravel() * np.pi)
             wi = np.repeat(_direction(np.array([theta_i]), np.array([0.0])), len(wo), axis=0)
             f = self.brdf.eval(self.weights, wi, wo).astype(np.float64) @ LUMINANCE
-            v = np.clip(f * wo[:, 2], 0.0, None).reshape(self.nt, 2, self.np_, 2).mean(axis=(1, 3))
-            mass = v * self.area
-            total = mass.sum()
-            p = (mass / total).ravel() if total > 0 else np.zeros(self.nt * self.np_)
-            self.prob[b] = p
-            self.cdf[b] = np.cumsum(p)
-        return self.prob[b], self.cdf[b]
+            v = np.clip(f * wo[:, 2], 0.0, None).reshape(self.nt + 1, self.np_ + 1)
+            total = (v[:-1, :-1] + v[1:, :-1] + v[:-1, 1:] + v[1:, 1:]).sum() / (4 * self.nt * self.np_)
+            self.nodes[b] = v / total if total > 0 else np.zeros_like(v)
+        return self.nodes[b]
+
+    def _coords(self, wi, wo):
+        x = np.clip(1.0 - wo[:, 2], 0.0, 1.0)
+        phi_d = np.abs(np.angle(np.exp(1j * (np.arctan2(wo[:, 1], wo[:, 0]) - np.arctan2(wi[:, 1], wi[:, 0])))))
+        return x, np.clip(phi_d / np.pi, 0.0, 1.0)
 
     def pdf(self, wi, wo):
         """Density of :meth:`sample` in solid angle of ``wo`` for ``wi`` (both (n, 3), unit)."""
-        theta_i = np.arccos(np.clip(wi[:, 2], -1.0, 1.0))
-        bands = self.band(theta_i)
-        phi_d = np.abs(np.angle(np.exp(1j * (np.arctan2(wo[:, 1], wo[:, 0]) - np.arctan2(wi[:, 1], wi[:, 0])))))
-        t = np.clip(((1.0 - wo[:, 2]) * self.nt).astype(np.int64), 0, self.nt - 1)
-        p = np.clip((phi_d / self.dphi).astype(np.int64), 0, self.np_ - 1)
-        table = np.empty(len(wi))
+        bands = self.band(np.arccos(np.clip(wi[:, 2], -1.0, 1.0)))
+        x, y = self._coords(wi, wo)
+        i = np.minimum((x * self.nt).astype(np.int64), self.nt - 1)
+        j = np.minimum((y * self.np_).astype(np.int64), self.np_ - 1)
+        tx, ty = x * self.nt - i, y * self.np_ - j
+        q = np.zeros(len(wi))
         for b in np.unique(bands):
             sel = bands == b
-            prob, _ = self.table(int(b))
-            table[sel] = prob[t[sel] * self.np_ + p[sel]] / (2.0 * self.area[t[sel], p[sel]])
-        dens = (1.0 - self.eps) * table + self.eps * np.clip(wo[:, 2], 0.0, None) / np.pi
+            v = self.table(int(b))
+            a, c = i[sel], j[sel]
+            sx, sy = tx[sel], ty[sel]
+            q[sel] = ((1 - sx) * (1 - sy) * v[a, c] + sx * (1 - sy) * v[a + 1, c]
+                      + (1 - sx) * sy * v[a, c + 1] + sx * sy * v[a + 1, c + 1])
+        dens = (1.0 - self.eps) * q / (2 * np.pi) + self.eps * np.clip(wo[:, 2], 0.0, None) / np.pi
         return np.where((wi[:, 2] > 0) & (wo[:, 2] > 0), dens, 0.0)
 
     def sample(self, wi, u1, u2):
         """Directions ``wo`` (n, 3) for ``wi`` from uniform ``u1`` (n,) and ``u2`` (n, 2)."""
         n = len(wi)
-        wo = np.empty((n, 3))
         cos_lobe = u1 < self.eps
-        # The cosine lobe.
         r = np.sqrt(u2[:, 0])
         phi = 2 * np.pi * u2[:, 1]
-        lobe = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.clip(1 - u2[:, 0], 0, 1))], axis=1)
-        wo[cos_lobe] = lobe[cos_lobe]
-        # The tables.
-        theta_i = np.arccos(np.clip(wi[:, 2], -1.0, 1.0))
+        wo = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.clip(1 - u2[:, 0], 0, 1))], axis=1)
+        bands = self.band(np.arccos(np.clip(wi[:, 2], -1.0, 1.0)))
         phi_i = np.arctan2(wi[:, 1], wi[:, 0])
-        bands = self.band(theta_i)
-        u = np.clip((u1 - self.eps) / (1.0 - self.eps) if self.eps < 1 else u1, 0.0, np.nextafter(1.0, 0))
+        sign_u = np.clip((u1 - self.eps) / (1.0 - self.eps) if self.eps < 1 else u1, 0.0, 1.0)
         for b in np.unique(bands[~cos_lobe]):
             sel = (~cos_lobe) & (bands == b)
-            prob, cdf = self.table(int(b))
-            if cdf[-1] <= 0:
-                wo[sel] = lobe[sel]
-                continue
-            cell = np.clip(np.searchsorted(cdf, u[sel] * cdf[-1], side="right"), 0, len(cdf) - 1)
-            start = np.where(cell > 0, cdf[np.maximum(cell - 1, 0)], 0.0)
-            frac = np.clip((u[sel] * cdf[-1] - start) / np.where(prob[cell] > 0, prob[cell], 1.0), 0.0, 1.0)
-            t, p = cell // self.np_, cell % self.np_
-            ct = self.cos_edges[t] - u2[sel, 0] * (self.cos_edges[t] - self.cos_edges[t + 1])
-            pd = (p + u2[sel, 1]) * self.dphi
-            phi_o = np.where(frac < 0.5, phi_i[sel] + pd, phi_i[sel] - pd)
-            wo[sel] = _direction(np.arccos(np.clip(ct, 0.0, 1.0)), phi_o)
+            v = self.table(int(b))
+            if not v.any():
+                continue  # a zero table is never picked: the BRDF is 0 for this band, keep the lobe
+            m = sel.sum()
+            # x: the marginal's node values (trapezoid over y), piecewise linear in x.
+            mx = (v[:, :-1] + v[:, 1:]).sum(axis=1) / 2
+            i, rx = _pick(np.broadcast_to((mx[:-1] + mx[1:]) / 2, (m, self.nt)), u2[sel, 0])
+            tx = _linear(mx[i], mx[i + 1], rx)
+            # y given x: the row interpolated at x, piecewise linear in y.
+            row = (1 - tx)[:, None] * v[i] + tx[:, None] * v[i + 1]
+            j, ry = _pick((row[:, :-1] + row[:, 1:]) / 2, u2[sel, 1])
+            ty = _linear(row[np.arange(m), j], row[np.arange(m), j + 1], ry)
+            x = (i + tx) / self.nt
+            phi_d = (j + ty) / self.np_ * np.pi
+            phi_o = np.where(sign_u[sel] < 0.5, phi_i[sel] + phi_d, phi_i[sel] - phi_d)
+            wo[sel] = _direction(np.arccos(np.clip(1.0 - x, 0.0, 1.0)), phi_o)
         return np.ascontiguousarray(wo)
 
 
