@@ -7,7 +7,9 @@ import pytest
 
 import otbake.mitsuba
 
-ANGLES = [5.0, 30.0, 55.0, 80.0]
+# 80° passes too (p = 0.79 at res 41, D73) but costs as much as the other three together (the
+# kernel estimate near the horizon reaches across the cube face): CI tests three angles.
+ANGLES = [5.0, 30.0, 55.0]
 
 
 @pytest.fixture
