@@ -12,16 +12,24 @@ use rayon::prelude::*;
 /// the point spacing or many points coincide, and memory would no longer be linear in n.
 const MAX_PAIRS_PER_POINT: usize = 4096;
 
-/// Largest kernel in all, whatever n: 2^27 pairs take about 2 GB in the kernel's four arrays and
-/// about 9 GB of peak memory in the solve (the 1M-point 3D cow's 67M pairs peaked at 4.5 GB).
-/// A BRDF whose density is concentrated in a specular peak reached 19 GB before this limit.
+/// Largest kernel in all for small n: 2^27 pairs take 1 GB in the kernel's arrays (8 bytes per
+/// pair since the kernel is kept in row form only). A BRDF whose density is concentrated in a
+/// specular peak reached 19 GB before this limit.
 const MAX_PAIRS: usize = 1 << 27;
 
-/// Most pairs a kernel on `rows` rows may keep: [`MAX_PAIRS_PER_POINT`] per row, [`MAX_PAIRS`] in all.
+/// Above [`MAX_PAIRS`], pairs allowed per row: 2.4 times the ~68 per point the default blur keeps
+/// in 3D (and 63 in 2D), so that the limit scales with n (a 16M-point bake keeps about 1.1G pairs
+/// at the defaults) while a kernel whose density is far from uniform is still refused. What
+/// memory a bake may use is decided before the solve, from the estimate of the solver's peak.
+const MAX_PAIRS_PER_POINT_LARGE: usize = 160;
+
+/// Most pairs a kernel on `rows` rows may keep: [`MAX_PAIRS_PER_POINT`] per row, and in all the
+/// larger of [`MAX_PAIRS`] and [`MAX_PAIRS_PER_POINT_LARGE`] per row.
 pub(super) fn pair_limit(rows: usize) -> usize {
+    let rows = rows.max(1);
     MAX_PAIRS_PER_POINT
-        .saturating_mul(rows.max(1))
-        .min(MAX_PAIRS)
+        .saturating_mul(rows)
+        .min(MAX_PAIRS.max(MAX_PAIRS_PER_POINT_LARGE.saturating_mul(rows)))
 }
 
 /// Builds a stage's kernel, refusing one whose size is no longer linear in n (more than
@@ -48,7 +56,8 @@ pub(super) fn build_kernel<const D: usize>(
             reason: format!(
                 "the truncated kernel at blur {blur:e} ({:.2} x the mean point spacing) would keep \
                  more than {limit} pairs for {rows} points (limits: {MAX_PAIRS_PER_POINT} per \
-                 point, {MAX_PAIRS} in all, to keep memory linear in n): many points coincide, or \
+                 point, {MAX_PAIRS} or {MAX_PAIRS_PER_POINT_LARGE} per point in all, to keep \
+                 memory linear in n): many points coincide, or \
                  the density is so uneven that its dense parts hold thousands of points within one \
                  blur; lower blur (or blur_spacing) or truncate, or use kind = \"sliced\"",
                 blur / spacing

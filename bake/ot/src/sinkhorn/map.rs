@@ -3,7 +3,7 @@
 //! when the auction cannot match every row), in the caller's order.
 
 use super::hierarchy::Hierarchy;
-use super::kernel::{map_lists_mut, Kernel};
+use super::kernel::{map_lists_mut, sort_lists_by_value, Kernel};
 use super::potentials::absorbed;
 use super::report::report_of;
 use super::schedule::Plan;
@@ -44,6 +44,36 @@ pub(super) fn finish<const D: usize>(
         _ => None,
     };
     let last = logs.pop().expect("a stage ran");
+    if let Some(info) = refine.as_ref().filter(|r| r.unassigned > 0) {
+        // A one-to-one map was asked for: a barycentric stand-in would be a silently different
+        // map (not onto the samples, contracted by the blur), so it is an error with its report.
+        let mut report = report_of(
+            problem,
+            n,
+            settings,
+            &logs,
+            &last,
+            plan.blur_end,
+            rebuilds,
+            max_pairs,
+            refine.as_ref(),
+        );
+        report.cost = crate::transport_cost(dim, problem.source, &mapped);
+        return Err(SolveError::NotConverged {
+            solver: super::NAME,
+            residual: info.unassigned as f64 / n as f64,
+            threshold: 0.0,
+            iterations: report.iterations,
+            hint: format!(
+                "map = \"assignment\": the auction left {} of {n} points unmatched on the \
+                 final kernel's support ({} phases, {} bids): the density is too uneven for the \
+                 blur; raise truncate (it is {}) or blur_spacing, or use map = \"barycentric\" \
+                 or kind = \"sliced\"",
+                info.unassigned, info.phases, info.bids, settings.truncate
+            ),
+            report: Box::new(report),
+        });
+    }
     let mut report = report_of(
         problem,
         n,
@@ -195,6 +225,9 @@ fn refine_assignment<const D: usize>(
         }
         m
     });
+    // Each row's candidates by ascending reduced cost: a bid then stops reading a row at the
+    // first candidate that cannot beat its second best (prices only fall), which is most of them.
+    sort_lists_by_value(&kern.row_ptr, &mut kern.col, &mut kern.k);
     let (row_ptr, col, red) = (&kern.row_ptr, &kern.col, &kern.k);
     let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]) - f[i] - g[j];
     let graph = Graph {
@@ -203,6 +236,7 @@ fn refine_assignment<const D: usize>(
         cols: y.len(),
         cost,
         pair_cost: Some(red),
+        sorted: true,
     };
     let n_cols = y.len();
     let mut v = vec![0.0; n_cols];

@@ -36,7 +36,7 @@ mod search;
 mod sparse;
 
 pub(super) use local::{rebuild_local, Local, LocalLimits};
-pub(in crate::sinkhorn) use sparse::map_lists_mut;
+pub(in crate::sinkhorn) use sparse::{map_lists_mut, sort_lists_by_value};
 
 use super::hierarchy::Hierarchy;
 use crate::cost;

@@ -78,6 +78,42 @@ where
     out.concat()
 }
 
+/// Sorts every list of (`ptr`, `idx`, `vals`) by ascending value (then entry), in place, in
+/// parallel over fixed chunks of lists.
+pub(in crate::sinkhorn) fn sort_lists_by_value(ptr: &[usize], idx: &mut [u32], vals: &mut [f32]) {
+    let m = ptr.len() - 1;
+    let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
+    let (mut rest_i, mut rest_v) = (idx, vals);
+    for c in 0..m.div_ceil(CHUNK) {
+        let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
+        let len = ptr[b] - ptr[a];
+        let (pi, ri) = std::mem::take(&mut rest_i).split_at_mut(len);
+        let (pv, rv) = std::mem::take(&mut rest_v).split_at_mut(len);
+        rest_i = ri;
+        rest_v = rv;
+        parts.push((a, b, pi, pv));
+    }
+    parts.into_par_iter().for_each(|(a, b, pi, pv)| {
+        let base = ptr[a];
+        let mut pairs: Vec<(f32, u32)> = Vec::new();
+        for i in a..b {
+            let r = ptr[i] - base..ptr[i + 1] - base;
+            pairs.clear();
+            pairs.extend(
+                pv[r.clone()]
+                    .iter()
+                    .copied()
+                    .zip(pi[r.clone()].iter().copied()),
+            );
+            pairs.sort_unstable_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+            for ((v, j), &(pv_, pj)) in pv[r.clone()].iter_mut().zip(&mut pi[r]).zip(&pairs) {
+                *v = pv_;
+                *j = pj;
+            }
+        }
+    });
+}
+
 /// The sorted union of two sorted, duplicate-free lists.
 pub(super) fn union<'a>(
     a: &'a [u32],
