@@ -195,7 +195,13 @@ pub fn run(
             })
         })
         .collect();
-    let peers = if kinds.contains(&SolverKind::Peers) {
+    // Peers are in the default set of a full bench only: `--quick` (CI, tests) runs them when
+    // asked for by name, so its rows never depend on what Python packages a machine has.
+    let explicit = options
+        .solvers
+        .as_ref()
+        .is_some_and(|s| s.contains(&SolverKind::Peers));
+    let peers = if explicit || (options.solvers.is_none() && !options.quick) {
         Peers::detect()
     } else {
         Peers::default()

@@ -27,7 +27,7 @@
 //! The exact solver runs once per case and size as the reference whenever n ≤ [`EXACT_MAX_N`], even
 //! if `exact` is not among the solvers benchmarked (then its row is left out).
 //!
-//! Peers: with `peers` among the solvers (the default), every tool of [`peers::PEER_TOOLS`] that
+//! Peers: with `peers` among the solvers (by name, or by default without `--quick`), every tool of [`peers::PEER_TOOLS`] that
 //! `bake/lab/peers/peers.py` finds installed runs on the same clouds, as rows of its own solver name
 //! (`pot_emd`, `pot_sinkhorn`, `geomloss`, `bsp_ot`) measured by the same code; the summary says
 //! which were found.
