@@ -34,6 +34,9 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
     /// instead of computing each from two positions, one of them a random read. Nearly all of an
     /// auction's time is these reads (1M 3D points: 15.6M bids over about 68 candidates each).
     pub pair_cost: Option<&'a [f32]>,
+    /// Each row's `pair_cost` is ascending: a row's scan stops at the first candidate whose cost
+    /// less the highest dual cannot beat the second best so far (the same result, read early).
+    pub sorted: bool,
 }
 
 /// Result of [`auction`].
@@ -76,6 +79,9 @@ where
     let mut phases = 0u32;
     let mut bids = 0u64;
     let mut completed = 0u32;
+    // The highest dual: bids only lower duals, so it is recomputed only after `complete`.
+    let highest = |v: &[f64]| v.par_iter().copied().reduce(|| f64::NEG_INFINITY, f64::max);
+    let mut v_hi = highest(v);
     loop {
         phases += 1;
         // Free every row that violates ε-complementary slackness (all rows in the first phase).
@@ -90,7 +96,7 @@ where
                         if xr[i] == NONE {
                             return true;
                         }
-                        let (u1, _, _, _) = best_two(graph, vr, i);
+                        let (u1, _, _, _) = best_two(graph, vr, v_hi, i);
                         let mine = (graph.cost)(i, xr[i] as usize) - vr[xr[i] as usize];
                         mine > u1 + eps
                     })
@@ -116,7 +122,7 @@ where
             head += 1;
             spent += 1;
             bids += 1;
-            let (u1, j1, u2, _) = best_two(graph, v, i);
+            let (u1, j1, u2, _) = best_two(graph, v, v_hi, i);
             if j1 == usize::MAX {
                 parked.push(i); // a row without candidates
                 continue;
@@ -136,6 +142,7 @@ where
             parked.dedup();
             parked.retain(|&i| x[i] == NONE);
             completed += complete(&parked, &mut x, &mut y, v);
+            v_hi = highest(v);
         }
         if eps <= eps_end {
             break;
@@ -153,14 +160,38 @@ where
 }
 
 /// Smallest and second-smallest reduced cost of row i over its candidates: (u1, j1, u2, j2).
+/// `v_hi` is at least every dual (what lets a sorted row stop early).
 fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     graph: &Graph<'_, C>,
     v: &[f64],
+    v_hi: f64,
     i: usize,
 ) -> (f64, usize, f64, usize) {
     let r = graph.row_ptr[i]..graph.row_ptr[i + 1];
     let cols = &graph.col[r.clone()];
     match graph.pair_cost {
+        Some(pc) if graph.sorted => {
+            let (mut u1, mut j1) = (f64::INFINITY, usize::MAX);
+            let (mut u2, mut j2) = (f64::INFINITY, usize::MAX);
+            for (&j, &c) in cols.iter().zip(&pc[r]) {
+                let c = f64::from(c);
+                // Every later candidate costs at least c − v_hi.
+                if c - v_hi >= u2 {
+                    break;
+                }
+                let (j, h) = (j as usize, c - v[j as usize]);
+                if h < u1 {
+                    u2 = u1;
+                    j2 = j1;
+                    u1 = h;
+                    j1 = j;
+                } else if h < u2 {
+                    u2 = h;
+                    j2 = j;
+                }
+            }
+            (u1, j1, u2, j2)
+        }
         Some(pc) => two_smallest(
             cols.iter()
                 .zip(&pc[r])
@@ -219,6 +250,7 @@ mod tests {
             cols: n,
             cost,
             pair_cost: None,
+            sorted: false,
         };
         let mut v = vec![0.0; n];
         let m = auction(&g, &mut v, 0.5, 1e-9, 4.0, 10.0, |_, _, _, _| 0);
@@ -257,6 +289,7 @@ mod tests {
             cols: 2,
             cost: |_, _| 1.0,
             pair_cost: None,
+            sorted: false,
         };
         let mut v = vec![0.0; 2];
         let mut asked = Vec::new();

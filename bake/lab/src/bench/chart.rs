@@ -1,6 +1,7 @@
 //! The bench's chart: one panel per case, wall time against L2-UVP, drawn with plotters in a
 //! font compiled into this crate.
 
+use super::peers::PEER_TOOLS;
 use super::{BenchError, Row, SolverKind};
 
 /// DejaVu Sans (Bitstream Vera license, `bake/lab/assets/DejaVuSans-LICENSE.txt`), compiled in so charts
@@ -25,6 +26,10 @@ fn solver_color(solver: &str) -> plotters::style::RGBColor {
     match solver {
         "exact" => RGBColor(30, 30, 30),
         "sliced" => RGBColor(220, 110, 20),
+        "pot_emd" => RGBColor(130, 130, 130),
+        "pot_sinkhorn" => RGBColor(40, 160, 70),
+        "geomloss" => RGBColor(170, 50, 160),
+        "bsp_ot" => RGBColor(200, 40, 40),
         _ => RGBColor(40, 100, 200),
     }
 }
@@ -57,9 +62,13 @@ pub fn chart_png(rows: &[Row]) -> Result<Vec<u8>, BenchError> {
     ns.sort_unstable();
     ns.dedup();
     let mut solvers: Vec<&'static str> = Vec::new();
-    for k in SolverKind::ALL {
-        if rows.iter().any(|r| r.solver == k.name()) {
-            solvers.push(k.name());
+    let names = SolverKind::ALL
+        .iter()
+        .map(|k| k.name())
+        .chain(PEER_TOOLS.iter().map(|p| p.0));
+    for name in names {
+        if rows.iter().any(|r| r.solver == name) {
+            solvers.push(name);
         }
     }
     let cols = match cases.len() {

@@ -1,5 +1,6 @@
 //! The sweep itself: one solver run measured against its references, and the whole benchmark.
 
+use super::peers::Peers;
 use super::{
     chart_png, configs, resolve_cases, sizes, to_csv, to_markdown, BenchError, BenchOptions,
     BenchReport, Case, Config, Event, Host, Instance, Row, SolverKind, EXACT_MAX_N,
@@ -7,7 +8,7 @@ use super::{
 use otbake_ot::metrics::{
     cost_ratio, fixed_directions, l2_uvp, sliced_w2, MetricError, SLICED_DIRECTIONS,
 };
-use otbake_ot::{solve, Problem, SolveError};
+use otbake_ot::{solve, transport_cost, Problem, SolveError};
 use std::time::Instant;
 
 /// Runs one solver on `inst` and measures it against the references: the exact matching's cost
@@ -75,6 +76,27 @@ pub fn measure(
     row.iterations = Some(report.iterations);
     row.residual = Some(report.residual);
     row.converged = report.converged;
+    score(
+        &mut row,
+        &solution.mapped,
+        report.cost,
+        inst,
+        exact,
+        directions,
+    );
+    (row, Some(solution.mapped))
+}
+
+/// The metrics of a map whose transport cost is `cost`: against the exact matching, the closed
+/// form and the target samples; a metric's error is noted in the row.
+fn score(
+    row: &mut Row,
+    mapped: &[f32],
+    cost: f64,
+    inst: &Instance,
+    exact: Option<&(f64, Vec<f32>)>,
+    directions: &[f64],
+) {
     let mut errors = Vec::new();
     let mut note = |r: Result<f64, MetricError>, what: &str| match r {
         Ok(v) => Some(v),
@@ -84,26 +106,62 @@ pub fn measure(
         }
     };
     if let Some((exact_cost, exact_map)) = exact {
-        row.cost_ratio = note(cost_ratio(report.cost, *exact_cost), "cost ratio");
+        row.cost_ratio = note(cost_ratio(cost, *exact_cost), "cost ratio");
         row.uvp_exact = note(
-            l2_uvp(2, &solution.mapped, exact_map, &inst.target),
+            l2_uvp(2, mapped, exact_map, &inst.target),
             "L2-UVP vs exact",
         );
     }
     if let Some(closed) = &inst.closed_form {
         row.uvp_closed_form = note(
-            l2_uvp(2, &solution.mapped, closed, &inst.target),
+            l2_uvp(2, mapped, closed, &inst.target),
             "L2-UVP vs closed form",
         );
     }
-    row.distance = note(
-        sliced_w2(2, &solution.mapped, &inst.target, directions),
-        "sliced W2",
-    );
+    row.distance = note(sliced_w2(2, mapped, &inst.target, directions), "sliced W2");
     if !errors.is_empty() {
         row.error = Some(errors.join("; "));
     }
-    (row, Some(solution.mapped))
+}
+
+/// Runs peer `tool` on `inst` ([`Peers::run`]) and measures its map like a solver's: its own
+/// solve time, the cost of its map, the same metrics. A failing tool is a row with its message.
+fn measure_peer(
+    peers: &Peers,
+    tool: &'static str,
+    case: &Case,
+    inst: &Instance,
+    n: usize,
+    exact: Option<&(f64, Vec<f32>)>,
+    directions: &[f64],
+) -> Row {
+    let mut row = Row {
+        case: case.name().to_string(),
+        solver: tool,
+        settings: "defaults".to_string(),
+        n,
+        seconds: f64::NAN,
+        cost: None,
+        cost_ratio: None,
+        uvp_exact: None,
+        uvp_closed_form: None,
+        distance: None,
+        iterations: None,
+        residual: None,
+        converged: false,
+        error: None,
+    };
+    match peers.run(tool, 2, &inst.source, &inst.target) {
+        Ok((mapped, seconds, _detail)) => {
+            let cost = transport_cost(2, &inst.source, &mapped);
+            row.seconds = seconds;
+            row.cost = Some(cost);
+            row.converged = true;
+            score(&mut row, &mapped, cost, inst, exact, directions);
+        }
+        Err(message) => row.error = Some(message),
+    }
+    row
 }
 
 /// Runs the benchmark on the point clouds `host` gives and writes `bench.csv`, `bench.png` and
@@ -137,7 +195,21 @@ pub fn run(
             })
         })
         .collect();
-    let total: usize = plan.iter().map(|(_, _, c)| c.len()).sum();
+    // Peers are in the default set of a full bench only: `--quick` (CI, tests) runs them when
+    // asked for by name, so its rows never depend on what Python packages a machine has.
+    let explicit = options
+        .solvers
+        .as_ref()
+        .is_some_and(|s| s.contains(&SolverKind::Peers));
+    let peers = if explicit || (options.solvers.is_none() && !options.quick) {
+        Peers::detect()
+    } else {
+        Peers::default()
+    };
+    let total: usize = plan
+        .iter()
+        .map(|(_, n, c)| c.len() + peers.tools_at(*n).len())
+        .sum();
     if total == 0 {
         return Err(BenchError::Empty);
     }
@@ -195,6 +267,17 @@ pub fn run(
             on_event(Event::Finished(&row));
             rows.push(row);
         }
+        for tool in peers.tools_at(n) {
+            on_event(Event::Started {
+                case: case.name(),
+                solver: tool,
+                settings: "defaults",
+                n,
+            });
+            let row = measure_peer(&peers, tool, case, &inst, n, exact.as_ref(), &directions);
+            on_event(Event::Finished(&row));
+            rows.push(row);
+        }
     }
     let load_after = load_average();
     let csv = options.out.join("bench.csv");
@@ -203,8 +286,13 @@ pub fn run(
     host.write(&chart, &chart_png(&rows)?)?;
     let summary = options.out.join("summary.md");
     let text = format!(
-        "Load average (1, 5, 15 min) before: {load_before}; after: {load_after}. {} cores.\n\n{}",
+        "Load average (1, 5, 15 min) before: {load_before}; after: {load_after}. {} cores.\n\n{}{}",
         std::thread::available_parallelism().map_or(0, |n| n.get()),
+        if peers.note.is_empty() {
+            String::new()
+        } else {
+            format!("{}\n\n", peers.note)
+        },
         to_markdown(&rows)
     );
     host.write(&summary, text.as_bytes())?;

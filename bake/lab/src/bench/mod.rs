@@ -27,6 +27,11 @@
 //! The exact solver runs once per case and size as the reference whenever n ≤ [`EXACT_MAX_N`], even
 //! if `exact` is not among the solvers benchmarked (then its row is left out).
 //!
+//! Peers: with `peers` among the solvers (by name, or by default without `--quick`), every tool of [`peers::PEER_TOOLS`] that
+//! `bake/lab/peers/peers.py` finds installed runs on the same clouds, as rows of its own solver name
+//! (`pot_emd`, `pot_sinkhorn`, `geomloss`, `bsp_ot`) measured by the same code; the summary says
+//! which were found.
+//!
 //! The point clouds of a case come from a [`Host`]: sampling a shape needs the baker's image codec,
 //! sampler and proxy, and this crate depends on no part of the baker. `otbake::bench::run` is
 //! [`run`] with the baker as host.
@@ -34,6 +39,7 @@
 pub mod barycenter;
 mod chart;
 mod engine;
+pub mod peers;
 mod progress;
 mod report;
 mod sweep;
@@ -85,11 +91,18 @@ pub enum SolverKind {
     Sliced,
     /// Multiscale Sinkhorn with its assignment (`otbake_ot::SinkhornSettings`).
     Sinkhorn,
+    /// The peer tools installed for `bake/lab/peers/peers.py` (POT, GeomLoss, BSP-OT; [`peers`]).
+    Peers,
 }
 
 impl SolverKind {
     /// Every solver family, in the order rows, series and legends use.
-    pub const ALL: [SolverKind; 3] = [SolverKind::Exact, SolverKind::Sliced, SolverKind::Sinkhorn];
+    pub const ALL: [SolverKind; 4] = [
+        SolverKind::Exact,
+        SolverKind::Sliced,
+        SolverKind::Sinkhorn,
+        SolverKind::Peers,
+    ];
 
     /// The name in the CSV's `solver` column and on the command line.
     pub fn name(self) -> &'static str {
@@ -97,6 +110,7 @@ impl SolverKind {
             SolverKind::Exact => "exact",
             SolverKind::Sliced => "sliced",
             SolverKind::Sinkhorn => "sinkhorn",
+            SolverKind::Peers => "peers",
         }
     }
 }

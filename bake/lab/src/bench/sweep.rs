@@ -28,6 +28,8 @@ pub fn configs(kind: SolverKind, n: usize, quick: bool) -> Vec<Config> {
             label: format!("max_n={EXACT_MAX_N}"),
         }],
         SolverKind::Exact => Vec::new(),
+        // Run by the engine through the peers script ([`super::peers`]), not as solver settings.
+        SolverKind::Peers => Vec::new(),
         SolverKind::Sliced => [50, 200]
             .into_iter()
             .map(|iterations| Config {

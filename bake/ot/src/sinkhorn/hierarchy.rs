@@ -21,7 +21,7 @@ pub(super) struct Level<const D: usize> {
     pub pos: Vec<[f64; D]>,
     /// Mass of each cell (its number of points / n).
     pub mass: Vec<f64>,
-    /// Tight bounding box of each cell's points.
+    /// Tight bounding box of each cell's points (empty on the point level).
     pub lo: Vec<[f64; D]>,
     pub hi: Vec<[f64; D]>,
     /// Cells `child[c]..child[c + 1]` of the next level are the children of cell `c` (empty on the
@@ -160,12 +160,13 @@ impl<const D: usize> Hierarchy<D> {
             None => vec![0; n],
         };
         let inv = 1.0 / n as f64;
+        // The point level's boxes would be the points themselves: the searches never read them.
         levels.push(Level {
             side: finest_side,
-            pos: sorted.clone(),
+            pos: sorted,
             mass: vec![inv; n],
-            lo: sorted.clone(),
-            hi: sorted,
+            lo: Vec::new(),
+            hi: Vec::new(),
             child: Vec::new(),
             parent: point_parent,
         });

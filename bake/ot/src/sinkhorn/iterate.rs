@@ -12,16 +12,24 @@ use rayon::prelude::*;
 /// the point spacing or many points coincide, and memory would no longer be linear in n.
 const MAX_PAIRS_PER_POINT: usize = 4096;
 
-/// Largest kernel in all, whatever n: 2^27 pairs take about 2 GB in the kernel's four arrays and
-/// about 9 GB of peak memory in the solve (the 1M-point 3D cow's 67M pairs peaked at 4.5 GB).
-/// A BRDF whose density is concentrated in a specular peak reached 19 GB before this limit.
+/// Largest kernel in all for small n: 2^27 pairs take 1 GB in the kernel's arrays (8 bytes per
+/// pair since the kernel is kept in row form only). A BRDF whose density is concentrated in a
+/// specular peak reached 19 GB before this limit.
 const MAX_PAIRS: usize = 1 << 27;
 
-/// Most pairs a kernel on `rows` rows may keep: [`MAX_PAIRS_PER_POINT`] per row, [`MAX_PAIRS`] in all.
+/// Above [`MAX_PAIRS`], pairs allowed per row: 2.4 times the ~68 per point the default blur keeps
+/// in 3D (and 63 in 2D), so that the limit scales with n (a 16M-point bake keeps about 1.1G pairs
+/// at the defaults) while a kernel whose density is far from uniform is still refused. What
+/// memory a bake may use is decided before the solve, from the estimate of the solver's peak.
+const MAX_PAIRS_PER_POINT_LARGE: usize = 160;
+
+/// Most pairs a kernel on `rows` rows may keep: [`MAX_PAIRS_PER_POINT`] per row, and in all the
+/// larger of [`MAX_PAIRS`] and [`MAX_PAIRS_PER_POINT_LARGE`] per row.
 pub(super) fn pair_limit(rows: usize) -> usize {
+    let rows = rows.max(1);
     MAX_PAIRS_PER_POINT
-        .saturating_mul(rows.max(1))
-        .min(MAX_PAIRS)
+        .saturating_mul(rows)
+        .min(MAX_PAIRS.max(MAX_PAIRS_PER_POINT_LARGE.saturating_mul(rows)))
 }
 
 /// Builds a stage's kernel, refusing one whose size is no longer linear in n (more than
@@ -48,7 +56,8 @@ pub(super) fn build_kernel<const D: usize>(
             reason: format!(
                 "the truncated kernel at blur {blur:e} ({:.2} x the mean point spacing) would keep \
                  more than {limit} pairs for {rows} points (limits: {MAX_PAIRS_PER_POINT} per \
-                 point, {MAX_PAIRS} in all, to keep memory linear in n): many points coincide, or \
+                 point, {MAX_PAIRS} or {MAX_PAIRS_PER_POINT_LARGE} per point in all, to keep \
+                 memory linear in n): many points coincide, or \
                  the density is so uneven that its dense parts hold thousands of points within one \
                  blur; lower blur (or blur_spacing) or truncate, or use kind = \"sliced\"",
                 blur / spacing
@@ -169,10 +178,15 @@ pub(super) fn iterate<const D: usize>(
     wrap: Wrap,
     spacing: f64,
 ) -> Result<StageLog, SolveError> {
-    let (a, b) = (
-        hs.levels[st.level].mass.clone(),
-        ht.levels[st.level].mass.clone(),
-    );
+    let (a, b) = (&hs.levels[st.level].mass[..], &ht.levels[st.level].mass[..]);
+    let mut sw = Sweep::new(&st.kernel);
+    if std::env::var_os("OTBAKE_TRACE").is_some() {
+        eprintln!(
+            "  kernel {} MB, column sums {} MB",
+            st.kernel.bytes() >> 20,
+            sw.bytes() >> 20
+        );
+    }
     let mut error = f64::INFINITY;
     let mut it = 0u32;
     let drift = Drift::new(settings.truncate);
@@ -191,18 +205,16 @@ pub(super) fn iterate<const D: usize>(
         } else {
             OVER_RELAXATION
         };
-        // Row update; its error term is the row marginal of the previous column update.
-        let rows_far;
-        (error, rows_far) = update_rows(st, &a, u_ref.as_deref(), omega);
+        // Row and column update; the error is the row marginal of the previous column update.
+        let swept = sweep(st, &mut sw, (a, b), u_ref.as_deref(), omega);
+        error = swept.error;
+        let (rows_far, cols_far) = (swept.rows_far, swept.cols_far);
         if u_ref.is_none() {
             u_ref = Some(st.u.clone());
         }
-        // Column update.
-        let col_drift = update_columns(st, &b, omega);
-        if !error.is_finite() || st.v.iter().any(|v| !v.is_finite()) {
+        if !error.is_finite() || !swept.finite {
             return Err(non_finite(st, settings, it, error));
         }
-        let cols_far = col_drift.iter().fold(1f64, |a, &d| a.max(d));
         let far = rows_far.max(cols_far);
         // A dropped pair moved by its row's drift plus its column's (in units of ε): the end of a
         // stage bounds that sum by twice the soft limit, which is what the θε/2 guarantee needs,
@@ -246,7 +258,8 @@ pub(super) fn iterate<const D: usize>(
                 it,
                 far,
             };
-            rebuild.run(hs, ht, st, settings, (&a, &b), wrap, spacing)?;
+            rebuild.run(hs, ht, st, settings, (a, b), wrap, spacing)?;
+            sw = Sweep::new(&st.kernel);
             u_ref = None;
             since_build = 0;
             plain = false;
@@ -261,59 +274,149 @@ pub(super) fn iterate<const D: usize>(
     })
 }
 
-/// One row update: u_i ← relax(u_i, a_i / (K v)_i). Returns the row marginal error of the plan
-/// before the update (Σ_i |u_i (K v)_i − a_i|, chunk sums added in order) and the largest drift
-/// factor of u against `uref`.
-fn update_rows(st: &mut State, a: &[f64], uref: Option<&[f64]>, omega: f64) -> (f64, f64) {
-    let (kern, v) = (&st.kernel, &st.v);
-    let rows: Vec<(f64, f64)> =
-        st.u.par_chunks_mut(CHUNK)
-            .enumerate()
-            .map(|(c, uc)| {
-                let mut e = 0.0;
-                let mut far = 0f64;
-                for (k, u) in uc.iter_mut().enumerate() {
-                    let i = c * CHUNK + k;
-                    let mut s = 0.0;
-                    for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
-                        s += f64::from(kern.k[p]) * v[kern.col[p] as usize];
-                    }
-                    e += (*u * s - a[i]).abs();
-                    *u = relax(*u, a[i] / s, omega);
-                    if let Some(r0) = uref {
-                        let r = *u / r0[i];
-                        let r = r.max(1.0 / r);
-                        far = if r.is_nan() {
-                            f64::INFINITY
-                        } else {
-                            far.max(r)
-                        };
-                    }
-                }
-                (e, far)
-            })
-            .collect();
-    let error = rows.iter().map(|r| r.0).sum();
-    let rows_far = rows.iter().map(|r| r.1).fold(0.0, f64::max);
-    (error, rows_far)
+/// Row blocks of a sweep, fixed whatever the thread count: each block scatters its rows' share of
+/// the column sums into its own array, and the arrays are added in block order, so the sums (and
+/// the maps) do not depend on the thread count.
+const BLOCKS: usize = 8;
+
+/// The column sums of one sweep: per block of rows, its rows and the column range its rows touch.
+pub(super) struct Sweep {
+    blocks: Vec<Block>,
 }
 
-/// One column update: v_j ← relax(v_j, b_j / (Kᵀ u)_j). Returns the largest drift factor of v
-/// against the masses, per chunk of columns.
-fn update_columns(st: &mut State, b: &[f64], omega: f64) -> Vec<f64> {
-    let (kern, u) = (&st.kernel, &st.u);
-    let drift: Vec<f64> =
+struct Block {
+    rows: std::ops::Range<usize>,
+    /// First column of `sums`.
+    first: usize,
+    sums: Vec<f64>,
+}
+
+impl Sweep {
+    /// Blocks splitting the pairs of `kern` about evenly, each summing over the columns its rows
+    /// touch (rows and columns are both in Morton order, so a block's columns are a narrow range
+    /// for nearly every map).
+    pub fn new(kern: &Kernel) -> Self {
+        let rows = kern.row_ptr.len() - 1;
+        let total = kern.pairs();
+        let mut cuts = vec![0usize];
+        for b in 1..BLOCKS {
+            let at = kern
+                .row_ptr
+                .partition_point(|&p| p < total * b / BLOCKS)
+                .min(rows);
+            if at > *cuts.last().unwrap() {
+                cuts.push(at);
+            }
+        }
+        if *cuts.last().unwrap() < rows || cuts.len() == 1 {
+            cuts.push(rows);
+        }
+        let blocks = cuts
+            .windows(2)
+            .map(|w| {
+                let cols = &kern.col[kern.row_ptr[w[0]]..kern.row_ptr[w[1]]];
+                let lo = cols.iter().copied().min().unwrap_or(0) as usize;
+                let hi = cols.iter().copied().max().map_or(0, |c| c as usize + 1);
+                Block {
+                    rows: w[0]..w[1],
+                    first: lo,
+                    sums: vec![0.0; hi.saturating_sub(lo)],
+                }
+            })
+            .collect();
+        Self { blocks }
+    }
+
+    /// Bytes of the column sums.
+    pub fn bytes(&self) -> usize {
+        self.blocks.iter().map(|b| b.sums.len() * 8).sum()
+    }
+}
+
+/// What one sweep found.
+struct Swept {
+    /// Row marginal error of the plan before the sweep.
+    error: f64,
+    /// Largest drift factor of u against `uref`, and of v against the masses.
+    rows_far: f64,
+    cols_far: f64,
+    /// Every new v is finite.
+    finite: bool,
+}
+
+/// One Sinkhorn iteration in one pass over the kernel's rows: u_i ← relax(u_i, a_i / (K v)_i), and
+/// at once K_ij u_i (new u) added to column j's sum; then v_j ← relax(v_j, b_j / Σ_i K_ij u_i).
+/// The error is the row marginal of the plan before the update (Σ_i |u_i (K v)_i − a_i|, summed in
+/// row order per block, blocks in order). Reading each pair once per iteration instead of twice
+/// (rows, then the column form) halves the memory traffic and the kernel's size.
+fn sweep(
+    st: &mut State,
+    sw: &mut Sweep,
+    (a, b): (&[f64], &[f64]),
+    uref: Option<&[f64]>,
+    omega: f64,
+) -> Swept {
+    let (kern, v) = (&st.kernel, &st.v);
+    let mut u_parts = Vec::with_capacity(sw.blocks.len());
+    let mut rest = &mut st.u[..];
+    for blk in &sw.blocks {
+        let (p, r) = std::mem::take(&mut rest).split_at_mut(blk.rows.len());
+        rest = r;
+        u_parts.push(p);
+    }
+    let rows: Vec<(f64, f64)> = sw
+        .blocks
+        .par_iter_mut()
+        .zip(u_parts)
+        .map(|(blk, us)| {
+            blk.sums.iter_mut().for_each(|s| *s = 0.0);
+            let mut e = 0.0;
+            let mut far = 0f64;
+            for (i, u) in blk.rows.clone().zip(us.iter_mut()) {
+                let r = kern.row_ptr[i]..kern.row_ptr[i + 1];
+                let (cols, ks) = (&kern.col[r.clone()], &kern.k[r]);
+                let mut s = 0.0;
+                for (&j, &k) in cols.iter().zip(ks) {
+                    s += f64::from(k) * v[j as usize];
+                }
+                e += (*u * s - a[i]).abs();
+                *u = relax(*u, a[i] / s, omega);
+                if let Some(r0) = uref {
+                    let r = *u / r0[i];
+                    let r = r.max(1.0 / r);
+                    far = if r.is_nan() {
+                        f64::INFINITY
+                    } else {
+                        far.max(r)
+                    };
+                }
+                let w = *u;
+                for (&j, &k) in cols.iter().zip(ks) {
+                    blk.sums[j as usize - blk.first] += f64::from(k) * w;
+                }
+            }
+            (e, far)
+        })
+        .collect();
+    let error = rows.iter().map(|r| r.0).sum();
+    let rows_far = rows.iter().map(|r| r.1).fold(0.0, f64::max);
+    let blocks = &sw.blocks;
+    let cols: Vec<(f64, bool)> =
         st.v.par_chunks_mut(CHUNK)
             .enumerate()
             .map(|(c, vc)| {
                 let mut far = 0f64;
+                let mut finite = true;
                 for (k, v) in vc.iter_mut().enumerate() {
                     let j = c * CHUNK + k;
                     let mut t = 0.0;
-                    for p in kern.col_ptr[j]..kern.col_ptr[j + 1] {
-                        t += f64::from(kern.kt[p]) * u[kern.row[p] as usize];
+                    for blk in blocks {
+                        if let Some(s) = j.checked_sub(blk.first).and_then(|o| blk.sums.get(o)) {
+                            t += s;
+                        }
                     }
                     *v = relax(*v, b[j] / t, omega);
+                    finite &= v.is_finite();
                     let r = *v / b[j];
                     let r = r.max(1.0 / r);
                     far = if r.is_nan() {
@@ -322,10 +425,15 @@ fn update_columns(st: &mut State, b: &[f64], omega: f64) -> Vec<f64> {
                         far.max(r)
                     };
                 }
-                far
+                (far, finite)
             })
             .collect();
-    drift
+    Swept {
+        error,
+        rows_far,
+        cols_far: cols.iter().map(|c| c.0).fold(1f64, f64::max),
+        finite: cols.iter().all(|c| c.1),
+    }
 }
 
 /// The error of a scaling that became non-finite.
@@ -416,7 +524,9 @@ impl Rebuild {
                 )
             }
             Some(kernel::Local::TooMany) | None => {
-                // Past the pair limit the whole build decides (and reports it).
+                // Past the pair limit the whole build decides (and reports it). The old kernel
+                // goes first: two whole kernels at once were the solve's peak memory.
+                st.kernel = Kernel::default();
                 st.kernel = build_kernel(hs, ht, st.level, &g, st.eps, settings, wrap, spacing)?;
                 st.f0 = st.kernel.f.clone();
                 st.g0 = g.clone();

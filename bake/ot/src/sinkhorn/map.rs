@@ -3,12 +3,13 @@
 //! when the auction cannot match every row), in the caller's order.
 
 use super::hierarchy::Hierarchy;
+use super::kernel::{map_lists_mut, sort_lists_by_value, Kernel};
 use super::potentials::absorbed;
 use super::report::report_of;
 use super::schedule::Plan;
 use super::stages::Stages;
 use super::state::{RefineInfo, State};
-use super::{MapKind, SinkhornSettings, CHUNK};
+use super::{MapKind, SinkhornSettings};
 use crate::auction::{auction, Graph};
 use crate::cost::{delta, sq};
 use crate::{Problem, Solution, SolveError, Wrap};
@@ -32,7 +33,7 @@ pub(super) fn finish<const D: usize>(
     } = stages;
     let (hs, ht) = (&plan.hs, &plan.ht);
     let dim = D;
-    let (mapped_sorted, refine) = read_map(settings, wrap, plan, &st);
+    let (mapped_sorted, refine) = read_map(settings, wrap, plan, st);
     let mut mapped = to_caller_order(hs, &mapped_sorted, n);
     if wrap == Wrap::Periodic {
         crate::cost::lift(dim, problem.source, &mut mapped);
@@ -43,6 +44,36 @@ pub(super) fn finish<const D: usize>(
         _ => None,
     };
     let last = logs.pop().expect("a stage ran");
+    if let Some(info) = refine.as_ref().filter(|r| r.unassigned > 0) {
+        // A one-to-one map was asked for: a barycentric stand-in would be a silently different
+        // map (not onto the samples, contracted by the blur), so it is an error with its report.
+        let mut report = report_of(
+            problem,
+            n,
+            settings,
+            &logs,
+            &last,
+            plan.blur_end,
+            rebuilds,
+            max_pairs,
+            refine.as_ref(),
+        );
+        report.cost = crate::transport_cost(dim, problem.source, &mapped);
+        return Err(SolveError::NotConverged {
+            solver: super::NAME,
+            residual: info.unassigned as f64 / n as f64,
+            threshold: 0.0,
+            iterations: report.iterations,
+            hint: format!(
+                "map = \"assignment\": the auction left {} of {n} points unmatched on the \
+                 final kernel's support ({} phases, {} bids): the density is too uneven for the \
+                 blur; raise truncate (it is {}) or blur_spacing, or use map = \"barycentric\" \
+                 or kind = \"sliced\"",
+                info.unassigned, info.phases, info.bids, settings.truncate
+            ),
+            report: Box::new(report),
+        });
+    }
     let mut report = report_of(
         problem,
         n,
@@ -68,24 +99,34 @@ fn read_map<const D: usize>(
     settings: &SinkhornSettings,
     wrap: Wrap,
     plan: &Plan<D>,
-    st: &State,
+    mut st: State,
 ) -> (Vec<[f64; D]>, Option<RefineInfo>) {
     let (hs, ht, point_level) = (&plan.hs, &plan.ht, plan.point_level);
+    let (x, y) = (&hs.levels[point_level].pos, &ht.levels[point_level].pos);
     match settings.map {
-        MapKind::Barycentric => (barycentric(st, hs, ht, wrap), None),
+        MapKind::Barycentric => {
+            let (kern, v) = (&st.kernel, &st.v);
+            let weight = |p: usize, j: usize| f64::from(kern.k[p]) * v[j];
+            (barycentric(x, y, kern, weight, wrap), None)
+        }
         MapKind::Assignment => {
             let g = absorbed(&st.g, &st.v, &ht.levels[point_level].mass, st.eps);
             let ta = std::time::Instant::now();
-            let r = refine_assignment(hs, ht, st, g, plan.side, settings.auction_eps, wrap);
+            let eps = st.eps;
+            let r = refine_assignment(x, y, &mut st, g, plan.side, settings.auction_eps, wrap);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!("  auction {:.2}s", ta.elapsed().as_secs_f64());
             }
             match r {
-                Ok((x, info)) => {
-                    let y = &ht.levels[point_level].pos;
-                    (x.iter().map(|&j| y[j as usize]).collect(), Some(info))
+                Ok((m, info)) => (m.iter().map(|&j| y[j as usize]).collect(), Some(info)),
+                Err(info) => {
+                    // The kernel's values now hold the reduced costs r_ij = C_ij − g_j − f_i of
+                    // the absorbed potentials, and K_ij v_j ∝ exp(−r_ij/ε) in each row (the
+                    // masses are uniform on the points): the same barycentric map.
+                    let kern = &st.kernel;
+                    let weight = |p: usize, _| (-f64::from(kern.k[p]) / eps).exp();
+                    (barycentric(x, y, kern, weight, wrap), Some(info))
                 }
-                Err(info) => (barycentric(st, hs, ht, wrap), Some(info)),
             }
         }
     }
@@ -108,17 +149,17 @@ fn to_caller_order<const D: usize>(
     mapped
 }
 
-/// T(x_i) = Σ_j K_ij v_j y_j / Σ_j K_ij v_j (u_i cancels) on the point level; on the torus
-/// x_i + Σ_j K_ij v_j δ(x_i, y_j) / Σ_j K_ij v_j, the mean of the shortest displacements (the plan of
-/// a row is concentrated within a few blurs of x_i, far less than half a period).
+/// T(x_i) = Σ_j w_ij y_j / Σ_j w_ij on the point level, with `weight(p, j)` the plan's entry p
+/// (column j) up to a factor per row (K_ij v_j: u_i cancels); on the torus
+/// x_i + Σ_j w_ij δ(x_i, y_j) / Σ_j w_ij, the mean of the shortest displacements (the plan of a row
+/// is concentrated within a few blurs of x_i, far less than half a period).
 fn barycentric<const D: usize>(
-    st: &State,
-    hs: &Hierarchy<D>,
-    ht: &Hierarchy<D>,
+    x: &[[f64; D]],
+    y: &[[f64; D]],
+    kern: &Kernel,
+    weight: impl Fn(usize, usize) -> f64 + Sync,
     wrap: Wrap,
 ) -> Vec<[f64; D]> {
-    let (x, y) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
-    let kern = &st.kernel;
     // x_i plus the weighted mean of the shortest displacements: the plain weighted mean of the y_j
     // in the Euclidean case, and on the torus the circular mean around x_i.
     (0..kern.row_ptr.len() - 1)
@@ -128,7 +169,7 @@ fn barycentric<const D: usize>(
             let mut w = 0.0;
             for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
                 let j = kern.col[p] as usize;
-                let kv = f64::from(kern.k[p]) * st.v[j];
+                let kv = weight(p, j);
                 w += kv;
                 for a in 0..D {
                     acc[a] += kv * delta(wrap, x[i][a], y[j][a]);
@@ -160,62 +201,50 @@ const MAX_DENSE_PATHS: usize = 2000;
 /// 1e-7 of their size, far below the auction's final ε. They are computed once, in parallel, and
 /// the bids read them in order instead of computing costs from positions.
 fn refine_assignment<const D: usize>(
-    hs: &Hierarchy<D>,
-    ht: &Hierarchy<D>,
-    st: &State,
+    x: &[[f64; D]],
+    y: &[[f64; D]],
+    st: &mut State,
     g: Vec<f64>,
     side: f64,
     auction_eps: f64,
     wrap: Wrap,
 ) -> Result<(Vec<u32>, RefineInfo), RefineInfo> {
-    let (x, y) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
-    let (row_ptr, col) = (&st.kernel.row_ptr, &st.kernel.col);
-    let rows = row_ptr.len() - 1;
-    // Per row: f_i = min over the candidates of C_ij − g_j, then the candidates' C_ij − g_j − f_i.
-    let chunks: Vec<(Vec<f64>, Vec<f32>)> = (0..rows.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(rows));
-            let mut f = Vec::with_capacity(b - a);
-            let mut red = Vec::with_capacity(row_ptr[b] - row_ptr[a]);
-            let mut h = Vec::new();
-            for i in a..b {
-                h.clear();
-                h.extend(
-                    col[row_ptr[i]..row_ptr[i + 1]]
-                        .iter()
-                        .map(|&j| sq(wrap, &x[i], &y[j as usize]) - g[j as usize]),
-                );
-                let m = h.iter().copied().fold(f64::INFINITY, f64::min);
-                let m = if m.is_finite() { m } else { 0.0 };
-                // Rounded to f32 only once the row constant is out.
-                red.extend(h.iter().map(|&h| (h - m) as f32));
-                f.push(m);
-            }
-            (f, red)
-        })
-        .collect();
-    let mut f = Vec::with_capacity(rows);
-    let mut red = Vec::with_capacity(col.len());
-    for (fc, rc) in chunks {
-        f.extend(fc);
-        red.extend(rc);
-    }
+    let eps = st.eps;
+    let kern = &mut st.kernel;
+    // Per row: f_i = min over the candidates of C_ij − g_j, then the candidates' C_ij − g_j − f_i,
+    // written over the kernel's values (which the auction no longer needs: no second pair array).
+    let col = &kern.col;
+    let f = map_lists_mut(&kern.row_ptr, &mut kern.k, |i, red| {
+        let cols = &col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
+        let h = |j: u32| sq(wrap, &x[i], &y[j as usize]) - g[j as usize];
+        let m = cols.iter().map(|&j| h(j)).fold(f64::INFINITY, f64::min);
+        let m = if m.is_finite() { m } else { 0.0 };
+        // Rounded to f32 only once the row constant is out.
+        for (r, &j) in red.iter_mut().zip(cols) {
+            *r = (h(j) - m) as f32;
+        }
+        m
+    });
+    // Each row's candidates by ascending reduced cost: a bid then stops reading a row at the
+    // first candidate that cannot beat its second best (prices only fall), which is most of them.
+    sort_lists_by_value(&kern.row_ptr, &mut kern.col, &mut kern.k);
+    let (row_ptr, col, red) = (&kern.row_ptr, &kern.col, &kern.k);
     let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]) - f[i] - g[j];
     let graph = Graph {
         row_ptr,
         col,
         cols: y.len(),
         cost,
-        pair_cost: Some(&red),
+        pair_cost: Some(red),
+        sorted: true,
     };
     let n_cols = y.len();
     let mut v = vec![0.0; n_cols];
     let m = auction(
         &graph,
         &mut v,
-        st.eps * AUCTION_START[D.min(4) - 1],
-        st.eps * auction_eps,
+        eps * AUCTION_START[D.min(4) - 1],
+        eps * auction_eps,
         4.0,
         side * side * D as f64,
         // Rows the sparse graph cannot place (it may lack a perfect matching, or a price war would

@@ -114,6 +114,8 @@ fn run<const D: usize>(
         return Ok(report::finish_identity(problem, n));
     }
     let plan = Plan::new(&xs, &ys, &grid, n, settings);
+    // The hierarchies hold the points now (sorted).
+    drop((xs, ys));
     let stages = stages::run(problem, n, settings, wrap, &plan)?;
     map::finish(problem, n, settings, wrap, &plan, stages)
 }

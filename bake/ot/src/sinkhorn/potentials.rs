@@ -2,7 +2,6 @@
 //! ε extrapolation of the entropic offset, and the soft c-transform onto a finer level.
 
 use super::hierarchy::Hierarchy;
-use super::kernel::Kernel;
 use crate::cost::sq;
 use crate::Wrap;
 use rayon::prelude::*;
@@ -58,14 +57,12 @@ pub(super) fn shrink_offset(soft: &[f64], hard: &[f64], ratio: f64) -> Vec<f64> 
 
 /// Target potential on level `to` from the source potential `f` on level `from`: the soft
 /// c-transform g(y) = −ε log Σ_I a_I exp((f_I − C(x_I, y))/ε) over the source cells the coarse
-/// kernel links to y's ancestor.
-#[allow(clippy::too_many_arguments)]
+/// kernel links to y's ancestor (`columns`: the coarse kernel's column form, pointers and rows).
 pub(super) fn extrapolate<const D: usize>(
     hs: &Hierarchy<D>,
     ht: &Hierarchy<D>,
-    from: usize,
-    to: usize,
-    kernel: &Kernel,
+    (from, to): (usize, usize),
+    (col_ptr, row): (&[usize], &[u32]),
     f: &[f64],
     eps: f64,
     wrap: Wrap,
@@ -79,7 +76,7 @@ pub(super) fn extrapolate<const D: usize>(
             for l in (from + 1..=to).rev() {
                 anc = ht.levels[l].parent[anc] as usize;
             }
-            let rows = &kernel.row[kernel.col_ptr[anc]..kernel.col_ptr[anc + 1]];
+            let rows = &row[col_ptr[anc]..col_ptr[anc + 1]];
             let y = &ys.pos[j];
             let mut m = f64::NEG_INFINITY;
             for &i in rows {

@@ -52,6 +52,8 @@ pub(super) fn run<const D: usize>(
             None => vec![0.0; ht.levels[level].len()],
             Some(st) => next_potential(plan, st, level, eps, wrap),
         };
+        // The previous stage's kernel is not needed any more: free it before building the next.
+        drop(state.take());
         let tk = std::time::Instant::now();
         let kernel = build_kernel(hs, ht, level, &g, eps, settings, wrap, spacing)?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
@@ -121,15 +123,25 @@ fn next_potential<const D: usize>(
     let g_old = absorbed(&st.g, &st.v, &ht.levels[st.level].mass, st.eps);
     let f_old = absorbed(&st.kernel.f, &st.u, &hs.levels[st.level].mass, st.eps);
     let ratio = eps / st.eps;
+    // The column form of the kernel's pattern, made for this step only.
+    let (col_ptr, row) = st.kernel.columns();
     if level == st.level {
         let (sx, sy) = (&hs.levels[level].pos, &ht.levels[level].pos);
-        let g_hard = hard_transform(&st.kernel.col_ptr, &st.kernel.row, sy, sx, &f_old, wrap);
+        let g_hard = hard_transform(&col_ptr, &row, sy, sx, &f_old, wrap);
         shrink_offset(&g_old, &g_hard, ratio)
     } else {
         let (sx, sy) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
         let f_hard = hard_transform(&st.kernel.row_ptr, &st.kernel.col, sx, sy, &g_old, wrap);
         let f_pred = shrink_offset(&f_old, &f_hard, ratio);
-        extrapolate(hs, ht, st.level, level, &st.kernel, &f_pred, eps, wrap)
+        extrapolate(
+            hs,
+            ht,
+            (st.level, level),
+            (&col_ptr, &row),
+            &f_pred,
+            eps,
+            wrap,
+        )
     }
 }
 

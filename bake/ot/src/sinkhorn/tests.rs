@@ -346,3 +346,56 @@ fn kernel_beyond_the_pair_limit_is_refused() {
         other => panic!("expected a refusal, got {other:?}"),
     }
 }
+
+/// A peaked density (issue 19): 60% of the target in a Gaussian lobe a degree wide (σ = 1/90 of
+/// the side, as a degree is of θ's range in a BRDF grid) over a uniform floor, in 3D, with the
+/// default settings. The solver must either converge to a one-to-one map onto the samples or fail
+/// with an error that names a fix; a non-converged or non-bijective map would be a silent bad map.
+#[test]
+fn peaked_lobe_a_degree_wide() {
+    let mut rng = SplitMix64::new(19);
+    let n = 3000;
+    let mut cube = |m: usize, lo: f64, hi: f64| -> Vec<f32> {
+        (0..m * 3)
+            .map(|_| (lo + (hi - lo) * rng.next_f64()) as f32)
+            .collect()
+    };
+    let source = cube(n, 0.0, 1.0);
+    let lobe = n * 6 / 10;
+    let mut target = cube(n - lobe, 0.0, 1.0);
+    let mut rng = SplitMix64::new(91);
+    for _ in 0..lobe {
+        for c in [0.3, 0.7, 0.5] {
+            // Box–Muller.
+            let (u, v) = (rng.next_f64().max(1e-12), rng.next_f64());
+            let z = (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+            target.push((c + z / 90.0) as f32);
+        }
+    }
+    let p = Problem {
+        dim: 3,
+        source: &source,
+        target: &target,
+    };
+    match solve(&p, &SolverSettings::Sinkhorn(SinkhornSettings::default())) {
+        Ok(sol) => {
+            assert!(sol.report.converged, "{}", sol.report.detail);
+            let mut used = vec![false; n];
+            for j in sol.assignment.as_ref().expect("an assignment") {
+                assert!(!std::mem::replace(&mut used[*j as usize], true));
+            }
+            for (i, &j) in sol.assignment.as_ref().unwrap().iter().enumerate() {
+                let j = j as usize;
+                assert_eq!(&sol.mapped[3 * i..3 * i + 3], &target[3 * j..3 * j + 3]);
+            }
+        }
+        Err(SolveError::InvalidSettings { reason, .. }) => {
+            assert!(reason.contains("sliced"), "{reason}");
+        }
+        Err(SolveError::NotConverged { hint, residual, .. }) => {
+            assert!(residual.is_finite());
+            assert!(hint.contains("raise") || hint.contains("sliced"), "{hint}");
+        }
+        Err(e) => panic!("unexpected error {e}"),
+    }
+}

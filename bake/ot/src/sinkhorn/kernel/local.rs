@@ -4,8 +4,8 @@
 use super::super::hierarchy::Hierarchy;
 use super::bounds::bounds;
 use super::search::search_some;
-use super::sparse::concat;
-use super::{Kernel, CHUNK, K_MIN};
+use super::sparse::{fill_lists, union};
+use super::{Kernel, K_MIN};
 use crate::cost;
 use crate::Wrap;
 use rayon::prelude::*;
@@ -131,82 +131,39 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     if old.pairs() + extra.len() > max_pairs {
         return None;
     }
-    // Rows and columns are each the old list merged with the new pairs (both sorted), valued for
-    // the new (f, g): two parallel passes, no transpose. An entry's value is the same expression of
-    // (i, j) in both passes, so the row and column forms hold the same bits.
-    let value = |i: usize, j: usize| -> f32 {
-        let c = cost::sq(wrap, &xs.pos[i], &ys.pos[j]);
-        ((f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32
-    };
-    let (row_ptr, col, k) = merge_lists(&old.row_ptr, &old.col, &extra, value);
-    let mut by_col: Vec<(u32, u32)> = extra.iter().map(|&(i, j)| (j, i)).collect();
-    by_col.par_sort_unstable();
-    let (col_ptr, row, kt) = merge_lists(&old.col_ptr, &old.row, &by_col, |j, i| value(i, j));
-    let kernel = Kernel {
-        row_ptr,
-        col,
-        k,
-        col_ptr,
-        row,
-        kt,
-        f,
-    };
-    Some(Local::Built(kernel, rows.len(), cols.len()))
-}
-
-/// Sparse lists (`ptr`, `idx`, each list sorted) merged with new (list, entry) pairs (sorted,
-/// distinct), with `value(list, entry)` for every entry; in fixed-size chunks of lists, so the bytes
-/// do not depend on the thread count.
-fn merge_lists(
-    ptr: &[usize],
-    idx: &[u32],
-    new: &[(u32, u32)],
-    value: impl Fn(usize, usize) -> f32 + Sync,
-) -> (Vec<usize>, Vec<u32>, Vec<f32>) {
-    let m = ptr.len() - 1;
+    // Rows are the old lists merged with the new pairs (both sorted), valued for the new (f, g),
+    // counted first and written into the new kernel's arrays.
     let mut starts = vec![0usize; m + 1];
-    for &(i, _) in new {
+    for &(i, _) in &extra {
         starts[i as usize + 1] += 1;
     }
     for i in 0..m {
         starts[i + 1] += starts[i];
     }
-    let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)> = (0..m.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|ci| {
-            let (a, b) = (ci * CHUNK, ((ci + 1) * CHUNK).min(m));
-            let mut lens = Vec::with_capacity(b - a);
-            let cap = ptr[b] - ptr[a] + starts[b] - starts[a];
-            let mut out = Vec::with_capacity(cap);
-            let mut vals = Vec::with_capacity(cap);
-            for i in a..b {
-                let before = out.len();
-                let (old, add) = (&idx[ptr[i]..ptr[i + 1]], &new[starts[i]..starts[i + 1]]);
-                let (mut p, mut q) = (0, 0);
-                while p < old.len() || q < add.len() {
-                    let j = match (old.get(p), add.get(q)) {
-                        (Some(&x), Some(&(_, y))) => {
-                            p += usize::from(x <= y);
-                            q += usize::from(y <= x);
-                            x.min(y)
-                        }
-                        (Some(&x), None) => {
-                            p += 1;
-                            x
-                        }
-                        (None, Some(&(_, y))) => {
-                            q += 1;
-                            y
-                        }
-                        (None, None) => unreachable!("the loop runs while one side is left"),
-                    };
-                    out.push(j);
-                    vals.push(value(i, j as usize));
-                }
-                lens.push((out.len() - before) as u32);
+    let lists = |i: usize| {
+        union(
+            &old.col[old.row_ptr[i]..old.row_ptr[i + 1]],
+            extra[starts[i]..starts[i + 1]].iter().map(|e| e.1),
+        )
+    };
+    let (row_ptr, col, k) = fill_lists(
+        m,
+        |i| lists(i).count(),
+        |i, cols, vals| {
+            for ((j, c), v) in lists(i).zip(cols.iter_mut()).zip(vals.iter_mut()) {
+                let ju = j as usize;
+                let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
+                *c = j;
+                *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
             }
-            (lens, out, vals)
-        })
-        .collect();
-    concat(chunks, m)
+        },
+    );
+    let kernel = Kernel {
+        row_ptr,
+        col,
+        k,
+        cols: nt,
+        f,
+    };
+    Some(Local::Built(kernel, rows.len(), cols.len()))
 }

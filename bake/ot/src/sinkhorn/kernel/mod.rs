@@ -23,7 +23,7 @@
 //! in `[0,1)^d`, and only the bound and the costs see the metric.
 //!
 //! Determinism: every row (column) is searched independently and rows are processed in fixed-size
-//! chunks concatenated in order, so the kernel's bytes do not depend on the thread count.
+//! chunks written in order, so the kernel's bytes do not depend on the thread count.
 //!
 //! Here: the [`Kernel`] and its whole [`build`]; `bounds` (the affine lower bounds of a
 //! potential over the cells), `search` (the branch-and-bound searches), `local` (rebuilding only
@@ -36,13 +36,13 @@ mod search;
 mod sparse;
 
 pub(super) use local::{rebuild_local, Local, LocalLimits};
+pub(in crate::sinkhorn) use sparse::{map_lists_mut, sort_lists_by_value};
 
 use super::hierarchy::Hierarchy;
 use crate::cost;
 use crate::Wrap;
-use rayon::prelude::*;
 use search::search_all;
-use sparse::{assemble, transpose};
+use sparse::{fill_lists, transpose, union};
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
 const CHUNK: usize = 1024;
@@ -51,15 +51,17 @@ const CHUNK: usize = 1024;
 /// offset; clamping keeps them representable (the scalings absorb the rest).
 const K_MIN: f64 = 1e-37;
 
-/// A sparse kernel on (source cells × target cells) of one level.
+/// A sparse kernel on (source cells × target cells) of one level, in row form only: the column
+/// update scatters from the rows ([`super::iterate`]), and the few steps that need the column form
+/// (moving potentials between stages) compute its pattern when they need it ([`Kernel::columns`]).
+/// Keeping the column form too cost 8 more bytes per pair, half of the kernel.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Kernel {
     pub row_ptr: Vec<usize>,
     pub col: Vec<u32>,
     pub k: Vec<f32>,
-    pub col_ptr: Vec<usize>,
-    pub row: Vec<u32>,
-    pub kt: Vec<f32>,
+    /// Number of columns (target cells).
+    pub cols: usize,
     /// Row offsets f_i of the kernel (the hard c-transform of g).
     pub f: Vec<f64>,
 }
@@ -67,6 +69,16 @@ pub(super) struct Kernel {
 impl Kernel {
     pub fn pairs(&self) -> usize {
         self.col.len()
+    }
+
+    /// Bytes of the kernel's arrays.
+    pub fn bytes(&self) -> usize {
+        self.row_ptr.len() * 8 + self.col.len() * 8 + self.f.len() * 8
+    }
+
+    /// The column form of the pattern: (column pointers, rows ascending in each column).
+    pub fn columns(&self) -> (Vec<usize>, Vec<u32>) {
+        transpose(&self.row_ptr, &self.col, self.cols)
     }
 }
 
@@ -105,57 +117,35 @@ pub(super) fn build<const D: usize>(
     let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap, max_pairs)?;
     // Column test against f.
     let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap, max_pairs)?;
-    // Column-test pairs as rows, then the union with the row-test pairs, row by row.
-    let (eptr, eidx, _) = transpose(&cptr, &cidx, xs.len());
-    let m = xs.len();
-    let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)> = (0..m.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|ci| {
-            let (a, b) = (ci * CHUNK, ((ci + 1) * CHUNK).min(m));
-            let mut lens = Vec::with_capacity(b - a);
-            let mut col = Vec::new();
-            let mut k = Vec::new();
-            for i in a..b {
-                let (r, e) = (&ridx[rptr[i]..rptr[i + 1]], &eidx[eptr[i]..eptr[i + 1]]);
-                let before = col.len();
-                let (mut p, mut q) = (0, 0);
-                while p < r.len() || q < e.len() {
-                    let j = match (r.get(p), e.get(q)) {
-                        (Some(&x), Some(&y)) if x == y => {
-                            p += 1;
-                            q += 1;
-                            x
-                        }
-                        (Some(&x), Some(&y)) if x < y => {
-                            p += 1;
-                            x
-                        }
-                        (Some(_), Some(&y)) => {
-                            q += 1;
-                            y
-                        }
-                        (Some(&x), None) => {
-                            p += 1;
-                            x
-                        }
-                        (None, Some(&y)) => {
-                            q += 1;
-                            y
-                        }
-                        (None, None) => unreachable!(),
-                    };
-                    let ju = j as usize;
-                    let c = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
-                    let v = ((f[i] + g[ju] - c) / eps).exp().clamp(K_MIN, 1.0);
-                    col.push(j);
-                    k.push(v as f32);
-                }
-                lens.push((col.len() - before) as u32);
+    // Column-test pairs as rows, then the union with the row-test pairs, row by row: counted
+    // first, then written into the kernel's arrays.
+    let (eptr, eidx) = transpose(&cptr, &cidx, xs.len());
+    drop((cptr, cidx));
+    let lists = |i: usize| {
+        union(
+            &ridx[rptr[i]..rptr[i + 1]],
+            eidx[eptr[i]..eptr[i + 1]].iter().copied(),
+        )
+    };
+    let (row_ptr, col, k) = fill_lists(
+        xs.len(),
+        |i| lists(i).count(),
+        |i, cols, vals| {
+            for ((j, c), v) in lists(i).zip(cols.iter_mut()).zip(vals.iter_mut()) {
+                let ju = j as usize;
+                let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
+                *c = j;
+                *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
             }
-            (lens, col, k)
-        })
-        .collect();
-    Some(assemble(chunks, m, ys.len(), f))
+        },
+    );
+    Some(Kernel {
+        row_ptr,
+        col,
+        k,
+        cols: ys.len(),
+        f,
+    })
 }
 
 #[cfg(test)]

@@ -1,49 +1,140 @@
-//! Sparse lists in fixed chunks: concatenating per-chunk rows, assembling a kernel with its
-//! transpose, and the block-parallel transpose itself.
+//! Sparse lists in fixed chunks: filling lists of known lengths in place, mapping them in place, merging sorted lists, and the block-parallel transpose of a pattern.
+//!
+//! Memory is the point of most of this: a kernel holds ~70 pairs per point, so every transient copy
+//! of a pair array costs as much as the rest of the solve. Lists are therefore counted first and
+//! then filled into their final arrays (disjoint slices, one per chunk), never gathered per chunk
+//! and copied.
 
-use super::Kernel;
+use super::CHUNK;
 use rayon::prelude::*;
 
-/// Chunks of lists (per chunk: list lengths, entries, values) concatenated in order, as
-/// (ptr, entries, values) over `m` lists.
-pub(super) fn concat(
-    chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)>,
-    m: usize,
-) -> (Vec<usize>, Vec<u32>, Vec<f32>) {
-    let mut ptr = Vec::with_capacity(m + 1);
+/// Row pointers from list lengths.
+fn pointers(lens: Vec<usize>) -> Vec<usize> {
+    let mut ptr = Vec::with_capacity(lens.len() + 1);
     ptr.push(0);
-    let total: usize = chunks.iter().map(|c| c.1.len()).sum();
-    let mut out = Vec::with_capacity(total);
-    let mut vals = Vec::with_capacity(total);
-    for (lens, o, v) in chunks {
-        for l in lens {
-            ptr.push(ptr.last().unwrap() + l as usize);
-        }
-        out.extend(o);
-        vals.extend(v);
+    for l in lens {
+        ptr.push(ptr.last().unwrap() + l);
     }
-    (ptr, out, vals)
+    ptr
 }
 
-/// A kernel from its rows (per chunk: row lengths, columns, values), with the transpose.
-pub(super) fn assemble(
-    chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f32>)>,
-    m: usize,
-    nt: usize,
-    f: Vec<f64>,
-) -> Kernel {
-    let (row_ptr, col, k) = concat(chunks, m);
-    let (col_ptr, row, src_pos) = transpose(&row_ptr, &col, nt);
-    let kt = src_pos.par_iter().map(|&e| k[e]).collect();
-    Kernel {
-        row_ptr,
-        col,
-        k,
-        col_ptr,
-        row,
-        kt,
-        f,
+/// `m` lists whose lengths `count(i)` are known before their entries: the arrays are allocated
+/// once, at their final size, and `fill(i, entries, values)` writes list i into its own slices, in
+/// parallel over fixed chunks of lists (the bytes do not depend on the thread count).
+pub(super) fn fill_lists<C, F>(m: usize, count: C, fill: F) -> (Vec<usize>, Vec<u32>, Vec<f32>)
+where
+    C: Fn(usize) -> usize + Sync,
+    F: Fn(usize, &mut [u32], &mut [f32]) + Sync,
+{
+    let ptr = pointers((0..m).into_par_iter().map(&count).collect());
+    let total = ptr[m];
+    let mut idx = vec![0u32; total];
+    let mut vals = vec![0f32; total];
+    let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
+    let (mut rest_i, mut rest_v) = (&mut idx[..], &mut vals[..]);
+    for c in 0..m.div_ceil(CHUNK) {
+        let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
+        let len = ptr[b] - ptr[a];
+        let (pi, ri) = std::mem::take(&mut rest_i).split_at_mut(len);
+        let (pv, rv) = std::mem::take(&mut rest_v).split_at_mut(len);
+        rest_i = ri;
+        rest_v = rv;
+        parts.push((a, b, pi, pv));
     }
+    parts.into_par_iter().for_each(|(a, b, pi, pv)| {
+        let base = ptr[a];
+        for i in a..b {
+            let r = ptr[i] - base..ptr[i + 1] - base;
+            fill(i, &mut pi[r.clone()], &mut pv[r]);
+        }
+    });
+    (ptr, idx, vals)
+}
+
+/// `f(i, values of list i)` for every list of (`ptr`, `vals`), in place, in parallel over fixed
+/// chunks of lists; returns what `f` returned per list, in order.
+pub(in crate::sinkhorn) fn map_lists_mut<F>(ptr: &[usize], vals: &mut [f32], f: F) -> Vec<f64>
+where
+    F: Fn(usize, &mut [f32]) -> f64 + Sync,
+{
+    let m = ptr.len() - 1;
+    let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
+    let mut rest = vals;
+    for c in 0..m.div_ceil(CHUNK) {
+        let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
+        let (p, r) = std::mem::take(&mut rest).split_at_mut(ptr[b] - ptr[a]);
+        rest = r;
+        parts.push((a, b, p));
+    }
+    let out: Vec<Vec<f64>> = parts
+        .into_par_iter()
+        .map(|(a, b, p)| {
+            let base = ptr[a];
+            (a..b)
+                .map(|i| f(i, &mut p[ptr[i] - base..ptr[i + 1] - base]))
+                .collect()
+        })
+        .collect();
+    out.concat()
+}
+
+/// Sorts every list of (`ptr`, `idx`, `vals`) by ascending value (then entry), in place, in
+/// parallel over fixed chunks of lists.
+pub(in crate::sinkhorn) fn sort_lists_by_value(ptr: &[usize], idx: &mut [u32], vals: &mut [f32]) {
+    let m = ptr.len() - 1;
+    let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
+    let (mut rest_i, mut rest_v) = (idx, vals);
+    for c in 0..m.div_ceil(CHUNK) {
+        let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
+        let len = ptr[b] - ptr[a];
+        let (pi, ri) = std::mem::take(&mut rest_i).split_at_mut(len);
+        let (pv, rv) = std::mem::take(&mut rest_v).split_at_mut(len);
+        rest_i = ri;
+        rest_v = rv;
+        parts.push((a, b, pi, pv));
+    }
+    parts.into_par_iter().for_each(|(a, b, pi, pv)| {
+        let base = ptr[a];
+        let mut pairs: Vec<(f32, u32)> = Vec::new();
+        for i in a..b {
+            let r = ptr[i] - base..ptr[i + 1] - base;
+            pairs.clear();
+            pairs.extend(
+                pv[r.clone()]
+                    .iter()
+                    .copied()
+                    .zip(pi[r.clone()].iter().copied()),
+            );
+            pairs.sort_unstable_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+            for ((v, j), &(pv_, pj)) in pv[r.clone()].iter_mut().zip(&mut pi[r]).zip(&pairs) {
+                *v = pv_;
+                *j = pj;
+            }
+        }
+    });
+}
+
+/// The sorted union of two sorted, duplicate-free lists.
+pub(super) fn union<'a>(
+    a: &'a [u32],
+    b: impl Iterator<Item = u32> + 'a,
+) -> impl Iterator<Item = u32> + 'a {
+    let mut a = a.iter().copied().peekable();
+    let mut b = b.peekable();
+    std::iter::from_fn(move || match (a.peek().copied(), b.peek().copied()) {
+        (Some(x), Some(y)) => {
+            if x <= y {
+                a.next();
+            }
+            if y <= x {
+                b.next();
+            }
+            Some(x.min(y))
+        }
+        (Some(_), None) => a.next(),
+        (None, Some(_)) => b.next(),
+        (None, None) => None,
+    })
 }
 
 /// Column blocks of a transpose, filled in parallel: each block owns a contiguous range of the
@@ -51,17 +142,12 @@ pub(super) fn assemble(
 /// would put it (the result does not depend on the thread count).
 const TRANSPOSE_BLOCKS: usize = 16;
 
-/// Transposes a CSR pattern (rows ascending inside each column): returns (ptr, idx, position of
-/// each transposed entry in the original arrays).
+/// Transposes a CSR pattern (rows ascending inside each column): returns (ptr, idx).
 ///
 /// The rows' lists are sorted, and rows and columns are both in Morton order, so a row's columns
 /// mostly fall in one block: a block skips a row by its first and last column, and cuts the rest by
 /// binary search.
-pub(super) fn transpose(
-    ptr: &[usize],
-    idx: &[u32],
-    cols: usize,
-) -> (Vec<usize>, Vec<u32>, Vec<usize>) {
+pub(super) fn transpose(ptr: &[usize], idx: &[u32], cols: usize) -> (Vec<usize>, Vec<u32>) {
     let mut tptr = vec![0usize; cols + 1];
     for &j in idx {
         tptr[j as usize + 1] += 1;
@@ -82,48 +168,42 @@ pub(super) fn transpose(
     }
     bounds.push(cols);
     let mut tidx = vec![0u32; total];
-    let mut src = vec![0usize; total];
     // Disjoint output slices, one per block.
     let mut parts = Vec::with_capacity(bounds.len() - 1);
-    let (mut rest_idx, mut rest_src) = (&mut tidx[..], &mut src[..]);
+    let mut rest_idx = &mut tidx[..];
     for w in bounds.windows(2) {
         let len = tptr[w[1]] - tptr[w[0]];
         let (a, r) = std::mem::take(&mut rest_idx).split_at_mut(len);
-        let (b, s) = std::mem::take(&mut rest_src).split_at_mut(len);
         rest_idx = r;
-        rest_src = s;
-        parts.push((w[0], w[1], a, b));
+        parts.push((w[0], w[1], a));
     }
-    parts
-        .into_par_iter()
-        .for_each(|(c0, c1, out_idx, out_src)| {
-            let base = tptr[c0];
-            let mut fill: Vec<usize> = tptr[c0..c1].iter().map(|&t| t - base).collect();
-            let (lo, hi) = (c0 as u32, c1 as u32);
-            for i in 0..ptr.len() - 1 {
-                let row = &idx[ptr[i]..ptr[i + 1]];
-                match (row.first(), row.last()) {
-                    (Some(&first), Some(&last)) if last >= lo && first < hi => {
-                        let a = if first >= lo {
-                            0
-                        } else {
-                            row.partition_point(|&j| j < lo)
-                        };
-                        let b = if last < hi {
-                            row.len()
-                        } else {
-                            row.partition_point(|&j| j < hi)
-                        };
-                        for (e, &j) in row.iter().enumerate().take(b).skip(a) {
-                            let slot = &mut fill[(j - lo) as usize];
-                            out_idx[*slot] = i as u32;
-                            out_src[*slot] = ptr[i] + e;
-                            *slot += 1;
-                        }
+    parts.into_par_iter().for_each(|(c0, c1, out_idx)| {
+        let base = tptr[c0];
+        let mut fill: Vec<usize> = tptr[c0..c1].iter().map(|&t| t - base).collect();
+        let (lo, hi) = (c0 as u32, c1 as u32);
+        for i in 0..ptr.len() - 1 {
+            let row = &idx[ptr[i]..ptr[i + 1]];
+            match (row.first(), row.last()) {
+                (Some(&first), Some(&last)) if last >= lo && first < hi => {
+                    let a = if first >= lo {
+                        0
+                    } else {
+                        row.partition_point(|&j| j < lo)
+                    };
+                    let b = if last < hi {
+                        row.len()
+                    } else {
+                        row.partition_point(|&j| j < hi)
+                    };
+                    for &j in &row[a..b] {
+                        let slot = &mut fill[(j - lo) as usize];
+                        out_idx[*slot] = i as u32;
+                        *slot += 1;
                     }
-                    _ => {}
                 }
+                _ => {}
             }
-        });
-    (tptr, tidx, src)
+        }
+    });
+    (tptr, tidx)
 }

@@ -44,17 +44,19 @@ fn transpose_equals_sequential() {
             idx.extend(&row);
             ptr.push(idx.len());
         }
-        let mut want: Vec<Vec<(u32, usize)>> = vec![Vec::new(); cols];
+        let mut want: Vec<Vec<u32>> = vec![Vec::new(); cols];
         for i in 0..rows {
             for e in ptr[i]..ptr[i + 1] {
-                want[idx[e] as usize].push((i as u32, e));
+                want[idx[e] as usize].push(i as u32);
             }
         }
-        let (tptr, tidx, src) = transpose(&ptr, &idx, cols);
+        let (tptr, tidx) = transpose(&ptr, &idx, cols);
         for j in 0..cols {
-            let got: Vec<(u32, usize)> =
-                (tptr[j]..tptr[j + 1]).map(|e| (tidx[e], src[e])).collect();
-            assert_eq!(got, want[j], "{rows}x{cols} column {j}");
+            assert_eq!(
+                &tidx[tptr[j]..tptr[j + 1]],
+                &want[j][..],
+                "{rows}x{cols} column {j}"
+            );
         }
         assert_eq!(tptr[cols], idx.len());
     }
@@ -97,14 +99,13 @@ fn truncation_equals_dense_scan() {
             }
             assert_eq!(kern.f[i], f[i]);
         }
-        // The transpose holds the same entries.
+        // The column form holds the same entries.
+        let (col_ptr, row) = kern.columns();
+        assert_eq!(row.len(), kern.pairs());
         for j in 0..ys.len() {
-            for e in kern.col_ptr[j]..kern.col_ptr[j + 1] {
-                let i = kern.row[e] as usize;
-                let pos = (kern.row_ptr[i]..kern.row_ptr[i + 1])
-                    .find(|&p| kern.col[p] as usize == j)
-                    .unwrap();
-                assert_eq!(kern.k[pos], kern.kt[e]);
+            for &i in &row[col_ptr[j]..col_ptr[j + 1]] {
+                let i = i as usize;
+                assert!(kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]].contains(&(j as u32)));
             }
         }
     }
@@ -194,13 +195,21 @@ fn local_rebuild_keeps_every_pair_it_promises() {
             }
         }
     }
-    // Entries and their transpose hold the values of the new potentials.
-    for j in 0..ys.len() {
-        for e in kern.col_ptr[j]..kern.col_ptr[j + 1] {
-            let i = kern.row[e] as usize;
+    // Entries hold the values of the new potentials, and the column form the same pairs.
+    for i in 0..xs.len() {
+        for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
+            let j = kern.col[p] as usize;
             let c = sq(&xs.pos[i], &ys.pos[j]);
             let want = ((kern.f[i] + g[j] - c) / eps).exp().clamp(K_MIN, 1.0) as f32;
-            assert_eq!(kern.kt[e], want);
+            assert_eq!(kern.k[p], want);
+        }
+    }
+    let (col_ptr, row) = kern.columns();
+    assert_eq!(row.len(), kern.pairs());
+    for j in 0..ys.len() {
+        for &i in &row[col_ptr[j]..col_ptr[j + 1]] {
+            let i = i as usize;
+            assert!(kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]].contains(&(j as u32)));
         }
     }
 }
