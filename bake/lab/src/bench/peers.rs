@@ -1,6 +1,6 @@
 //! Peer solvers on the bench's chart: POT (`ot.emd`, log-domain `ot.sinkhorn`), GeomLoss's
 //! multiscale Sinkhorn and POT's BSP-OT, run by `bake/lab/peers/peers.py` on the same point
-//! clouds as otbake's solvers and measured by the same code ([`super::engine`]).
+//! clouds as otbake's solvers and measured by the same code (the private `engine` module).
 //!
 //! The peers are optional: the bench asks the script which tools import (`peers.py list`) and runs
 //! those; with none installed it runs none and says so in the summary. The Python is
