@@ -45,7 +45,7 @@ def test_points_are_checked(blend, points, words):
     "weights, words",
     [
         ([0.5, 0.5], "weights has 2 values for 3 maps"),
-        ([0.5, 0.6, -0.1], "weights: weight 2 is negative"),
+        ([0.5, 0.6, -0.1], "weights: the weight at index 2 (counting from 0, in manifest order) is negative"),
         ([0.5, 0.5, 0.5], "weights: weights sum to 1.5"),
         (np.array(W), "weights has dtype float64, it must be float32"),
         (np.full((3, 3), 1 / 3, np.float32), "weights has shape [3, 3], it must be (3,) or (4, 3)"),
