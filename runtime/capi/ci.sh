@@ -98,7 +98,7 @@ test_args=("$tmp/expected.txt" "$tmp/a/proxy.otb" "$tmp/a/redcross.otb" "$tmp/b/
 
 cflags=(-std=c11 -Wall -Wextra -Werror -pedantic -O1 -g -I $capi/include -I $capi/c)
 libs=(-lm -lpthread -ldl)
-csrc=($capi/c/main.c $capi/c/expected.c $capi/c/bad_input.c)
+csrc=($capi/c/main.c $capi/c/expected.c $capi/c/prepared.c $capi/c/bad_input.c)
 
 echo "== C test (cc $(cc -dumpversion))"
 cc "${cflags[@]}" "${csrc[@]}" $lib "${libs[@]}" -o "$tmp/c_test"
