@@ -1,5 +1,5 @@
-/* Helpers shared by the C test's two halves (expected.c: answers bit for bit against the Rust
- * runtime; bad_input.c: refusals, never a crash). */
+/* Helpers shared by the C test's parts (expected.c and prepared.c: answers bit for bit against the
+ * Rust runtime; bad_input.c: refusals, never a crash). */
 #ifndef OTBAKE_CHECK_H
 #define OTBAKE_CHECK_H
 

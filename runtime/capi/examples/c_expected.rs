@@ -1,4 +1,4 @@
-//! Writes the queries and the answers of the Rust runtime that the C test (`c/test.c`) repeats
+//! Writes the queries and the answers of the Rust runtime that the C test (`c/*.c`) repeats
 //! through the C ABI and compares bit for bit.
 //!
 //! Usage: `c_expected OUT BLEND_PROXY BLEND_MAP... -- BRDF_PROXY BRDF_MAP...`
