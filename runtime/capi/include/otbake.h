@@ -389,10 +389,10 @@ typedef void (*OtbakeTaskFn)(void *task);
 
 /**
  * The caller's way to run the two independent halves of a preparation (positions and node boxes;
- * colors and node color sums), for instance on two threads of its job system: it must call
- * `run(a)` and `run(b)`, each at most once, in any order or at the same time on two threads, and
- * return only after both calls have returned. A half it does not call is run after it returns.
- * `context` is the pointer given to `otbake_prepared_new`. May be null (no join: the halves run
+ * colors and node color sums), for instance on two threads of its job system: it calls `run(a)`
+ * and `run(b)`, each at most once, in any order or at the same time on two threads, and returns
+ * only after every call it made has returned (never calling `run` later). A half it does not call
+ * is run after it returns. `context` is the pointer given to `otbake_prepared_new`. May be null (no join: the halves run
  * one after the other on the calling thread).
  */
 typedef void (*OtbakeJoinFn)(void *context, OtbakeTaskFn run, void *a, void *b);

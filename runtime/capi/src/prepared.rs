@@ -109,10 +109,10 @@ pub struct OtbakePreparedInfo {
 pub type OtbakeTaskFn = unsafe extern "C" fn(task: *mut c_void);
 
 /// The caller's way to run the two independent halves of a preparation (positions and node boxes;
-/// colors and node color sums), for instance on two threads of its job system: it must call
-/// `run(a)` and `run(b)`, each at most once, in any order or at the same time on two threads, and
-/// return only after both calls have returned. A half it does not call is run after it returns.
-/// `context` is the pointer given to `otbake_prepared_new`. May be null (no join: the halves run
+/// colors and node color sums), for instance on two threads of its job system: it calls `run(a)`
+/// and `run(b)`, each at most once, in any order or at the same time on two threads, and returns
+/// only after every call it made has returned (never calling `run` later). A half it does not call
+/// is run after it returns. `context` is the pointer given to `otbake_prepared_new`. May be null (no join: the halves run
 /// one after the other on the calling thread).
 pub type OtbakeJoinFn = Option<
     unsafe extern "C" fn(context: *mut c_void, run: OtbakeTaskFn, a: *mut c_void, b: *mut c_void),
@@ -288,9 +288,9 @@ pub unsafe extern "C" fn otbake_prepared_new(
                         (&mut a as *mut Task<'_>).cast::<c_void>(),
                         (&mut c as *mut Task<'_>).cast::<c_void>(),
                     );
-                    // SAFETY: the caller's contract for `join`: it calls `run_task` with `pa` and
-                    // `pc`, each at most once, and returns after both calls returned, so the tasks
-                    // (alive to the end of this closure) outlive every use.
+                    // SAFETY: the caller's contract for `join`: it calls `run_task` with `pa` or
+                    // `pc`, each at most once, and returns after every call it made returned, so
+                    // the tasks (alive to the end of this closure) outlive every use.
                     unsafe { join(join_context, run_task, pa, pc) };
                 })?;
                 if panicked.load(Ordering::SeqCst) {
