@@ -4,7 +4,8 @@
 #   2. small archives are baked here, examples/c_expected.rs writes the Rust runtime's answers,
 #      and the C test (c/*.c, system `cc`) checks them bit for bit plus every bad-input refusal,
 #      once plain and once with -fsanitize=address,undefined;
-#   3. the C++ engine example (c/engine.cpp, system `c++`) maps the archives and renders frames;
+#   3. the C++ engine example (c/engine.cpp, system `c++`) maps the archives and renders frames,
+#      splatting from the blend and from a prepared blend per frame: the same bytes;
 #   4. the README's C example compiles as written and runs.
 # Needs ../shared/data beside the repository (the bake's inputs). Fails loudly on the first error.
 set -euo pipefail
@@ -98,7 +99,7 @@ test_args=("$tmp/expected.txt" "$tmp/a/proxy.otb" "$tmp/a/redcross.otb" "$tmp/b/
 
 cflags=(-std=c11 -Wall -Wextra -Werror -pedantic -O1 -g -I $capi/include -I $capi/c)
 libs=(-lm -lpthread -ldl)
-csrc=($capi/c/main.c $capi/c/expected.c $capi/c/bad_input.c)
+csrc=($capi/c/main.c $capi/c/expected.c $capi/c/prepared.c $capi/c/bad_input.c)
 
 echo "== C test (cc $(cc -dumpversion))"
 cc "${cflags[@]}" "${csrc[@]}" $lib "${libs[@]}" -o "$tmp/c_test"
@@ -115,8 +116,11 @@ c++ -std=c++17 -Wall -Wextra -Werror -O2 -I $capi/include $capi/c/engine.cpp \
   -L target/debug -lotbake_capi -Wl,-rpath,"$root/target/debug" -lpthread -o "$tmp/engine"
 # shellcheck disable=SC2086
 "$tmp/engine" "$tmp/frame" 3 96 $a
+# shellcheck disable=SC2086
+"$tmp/engine" --mode prepared "$tmp/prepared" 3 96 $a
 for f in 000 001 002; do
   head -c 2 "$tmp/frame-$f.ppm" | grep -q P6 || { echo "error: frame $f is not a PPM" >&2; exit 1; }
+  cmp "$tmp/frame-$f.ppm" "$tmp/prepared-$f.ppm" || { echo "error: frame $f differs between the blend and prepared modes" >&2; exit 1; }
 done
 
 echo "== the README's C example compiles as written and runs"

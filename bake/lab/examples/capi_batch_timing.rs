@@ -14,14 +14,17 @@
 //! With a third argument `rust` or `c` it runs only that batch REPEATS times and times nothing, for
 //! instruction counts that load does not move: per batch, half the difference of two callgrind runs
 //! (`valgrind --tool=callgrind --callgrind-out-file=/dev/null target/release/examples/capi_batch_timing
-//! MANIFEST N c` for N = 1 and 3; likewise `rust`).
+//! MANIFEST N c` for N = 1 and 3; likewise `rust`). `prepare` runs `otbake_prepared_new` REPEATS
+//! times (one thread, no join), `prepared` prepares once and runs `otbake_prepared_point_batch` of
+//! the same points REPEATS times: what a prepared blend costs and saves per batch.
 
 use otbake::manifest::Manifest;
 use otbake::pipeline::bake::{bake, BakeOptions};
 use otbake_capi::{
-    otbake_blend_free, otbake_blend_new, otbake_blend_point_batch, otbake_map_free,
-    otbake_map_open, otbake_proxy_free, otbake_proxy_open, OtbakeBlend, OtbakePointValue,
-    OtbakeStatus,
+    otbake_blend_free, otbake_blend_new, otbake_blend_point_batch, otbake_blend_prepared_sizes,
+    otbake_map_free, otbake_map_open, otbake_prepared_free, otbake_prepared_new,
+    otbake_prepared_point_batch, otbake_proxy_free, otbake_proxy_open, OtbakeBlend,
+    OtbakePointValue, OtbakePrepared, OtbakePreparedSizes, OtbakeStatus,
 };
 use otbake_lab::timing::{self, median};
 use otbake_runtime::{Blend, Kernel, Map, PointValue, Proxy};
@@ -145,6 +148,62 @@ fn main() -> anyhow::Result<()> {
     };
     match args.get(3).map(String::as_str) {
         None => {}
+        Some(only @ ("prepare" | "prepared")) => {
+            let mut sizes = OtbakePreparedSizes::default();
+            // SAFETY: `c` is a live blend; `sizes` is a valid out pointer.
+            let s = unsafe { otbake_blend_prepared_sizes(c, &mut sizes) };
+            anyhow::ensure!(s == OtbakeStatus::Ok, "otbake_blend_prepared_sizes: {s:?}");
+            let mut store = vec![0.0f32; sizes.total];
+            let prepare = |store: &mut [f32]| -> anyhow::Result<*mut OtbakePrepared> {
+                let mut p = null_mut();
+                // SAFETY: `c` is live; `store` outlives the handle (freed before the next
+                // prepare into it) and nothing writes it meanwhile.
+                let s = unsafe {
+                    otbake_prepared_new(
+                        c,
+                        weights.as_ptr(),
+                        k,
+                        store.as_mut_ptr(),
+                        store.len(),
+                        None,
+                        null_mut(),
+                        &mut p,
+                    )
+                };
+                anyhow::ensure!(s == OtbakeStatus::Ok, "otbake_prepared_new: {s:?}");
+                Ok(p)
+            };
+            if only == "prepare" {
+                for _ in 0..repeats {
+                    let p = prepare(&mut store)?;
+                    // SAFETY: nothing else uses the handle.
+                    unsafe { otbake_prepared_free(p) };
+                }
+            } else {
+                let p = prepare(&mut store)?;
+                let mut out = vec![OtbakePointValue::default(); count];
+                for _ in 0..repeats {
+                    // SAFETY: `p` is live; the buffers hold `count` points and values.
+                    let s = unsafe {
+                        otbake_prepared_point_batch(
+                            p,
+                            points.as_ptr(),
+                            2,
+                            count,
+                            kernel.sigma,
+                            out.as_mut_ptr(),
+                        )
+                    };
+                    anyhow::ensure!(s == OtbakeStatus::Ok, "otbake_prepared_point_batch: {s:?}");
+                }
+                // SAFETY: nothing else uses the handle; `store` goes after it.
+                unsafe { otbake_prepared_free(p) };
+            }
+            println!("ran {only} {repeats} times");
+            // SAFETY: no batch uses the blend any more; the bytes are still alive.
+            unsafe { otbake_blend_free(c) };
+            return Ok(());
+        }
         Some(only @ ("rust" | "c")) => {
             for _ in 0..repeats {
                 if only == "rust" {
@@ -158,7 +217,9 @@ fn main() -> anyhow::Result<()> {
             unsafe { otbake_blend_free(c) };
             return Ok(());
         }
-        Some(other) => anyhow::bail!("the third argument is `rust` or `c`, not `{other}`"),
+        Some(other) => anyhow::bail!(
+            "the third argument is `rust`, `c`, `prepare` or `prepared`, not `{other}`"
+        ),
     }
     // One warm-up each: pages of the archives and buffers are resident before timing.
     rust_batch()?;

@@ -6,6 +6,8 @@ blend them on numpy arrays (point, range, sample and splat queries; BRDF eval, p
     blend = otbake.open_manifest("manifests/shapes-small.toml")  # bakes what is missing, opens it
     pts = np.random.default_rng(0).random((1000, 2), dtype=np.float32)
     density, mass, color = blend.point([0.25, 0.25, 0.25, 0.25], pts, sigma=0.01)
+    prepared = blend.prepare([0.25, 0.25, 0.25, 0.25])          # mixed once: no weights per query
+    density, color = prepared.splat((256, 256), sigma=0.002)
 
 Every function checks its arrays (shape, dtype, C-contiguity) and weights, and raises an
 :class:`otbake.Error` subclass naming the argument. Batch calls release the GIL. The Mitsuba 3
@@ -22,7 +24,7 @@ from ._errors import (
     ManifestError,
     QueryError,
 )
-from ._native import Blend, BrdfBlend, Map, Proxy, __version__
+from ._native import Blend, BrdfBlend, Map, Prepared, Proxy, __version__
 from . import _native
 
 __all__ = [
@@ -34,6 +36,7 @@ __all__ = [
     "Error",
     "ManifestError",
     "Map",
+    "Prepared",
     "Proxy",
     "QueryError",
     "bake",

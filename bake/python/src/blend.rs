@@ -7,6 +7,7 @@
 use crate::archive::{composite_name, Bytes, Map, Proxy};
 use crate::arrays::{matrix, same_rows, vector, WeightRows, Weights};
 use crate::errors::{argument, query};
+use crate::prepared::Prepared;
 use numpy::ndarray::{Array2, ArrayD, IxDyn};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayDyn};
 use otbake_runtime::{AdaptiveKernel, Blend as RtBlend, Error, Kernel, SplatTarget, MAX_DIM};
@@ -154,21 +155,21 @@ pub fn array2<'py>(
 }
 
 /// Point values of a batch: density `(n,)`, mass `(n,)`, color `(n, 3)`.
-type Values<'py> = (
+pub type Values<'py> = (
     Bound<'py, PyArray1<f32>>,
     Bound<'py, PyArray1<f32>>,
     Bound<'py, PyArray2<f32>>,
 );
 
 /// Range values of a batch: count `(n,)`, mass `(n,)`, color `(n, 3)`.
-type RangeValues<'py> = (
+pub type RangeValues<'py> = (
     Bound<'py, PyArray1<u32>>,
     Bound<'py, PyArray1<f32>>,
     Bound<'py, PyArray2<f32>>,
 );
 
 /// Samples of a batch: positions `(n, dim)`, colors `(n, 3)`.
-type Samples<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<f32>>);
+pub type Samples<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<f32>>);
 
 /// k maps of one proxy, ready to be queried with any weights: `Blend(proxy, maps)`.
 ///
@@ -434,6 +435,23 @@ impl Blend {
             shaped(density, shape)?,
             colors.map(|c| shaped(c, cshape)).transpose()?,
         ))
+    }
+
+    /// The blend mixed once for `weights` (k numbers, or a float32 array `(k,)`): a `Prepared`
+    /// whose queries take no weights and give this blend's bits for them. Mixing costs one pass
+    /// over every map (the GIL released, on two threads); worth it when many queries share one
+    /// weight vector (point grids, large batches, several splats).
+    fn prepare(slf: &Bound<'_, Self>, weights: &Bound<'_, PyAny>) -> PyResult<Prepared> {
+        let this = slf.get();
+        let k = this.parts.k();
+        let w = Weights::parse(weights, k, 1)?;
+        let Some(fixed) = w.rows(k).fixed.map(<[f32]>::to_vec) else {
+            return Err(argument(format!(
+                "weights must be one vector of {k} numbers: a prepared blend has one weight vector (prepare once per vector)"
+            )));
+        };
+        this.parts
+            .with(|b| Prepared::make(slf.py(), slf.clone().unbind(), b, fixed))
     }
 
     fn __repr__(&self) -> PyResult<String> {

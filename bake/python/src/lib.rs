@@ -9,6 +9,8 @@
 //!   (16-byte aligned) bytes for as long as any handle needs them;
 //! * [`blend`]: `Blend`, batch point / adaptive / range / sample / bandwidth queries on numpy
 //!   arrays and whole-grid splats into numpy arrays;
+//! * [`prepared`]: `Prepared` (`Blend.prepare(weights)`), the blend mixed once for one weight
+//!   vector into a buffer it owns: the same queries without weights, point grids, region splats;
 //! * [`brdf`]: `BrdfBlend`, BRDF eval / pdf / sample on arrays of directions;
 //! * [`bakeapi`]: `bake` (the report as JSON) and `manifest_archives` (where a manifest's archives are);
 //! * [`arrays`]: the checks every argument goes through (shape, dtype, contiguity, weights);
@@ -26,6 +28,7 @@ pub mod bakeapi;
 pub mod blend;
 pub mod brdf;
 pub mod errors;
+pub mod prepared;
 
 use pyo3::prelude::*;
 
@@ -35,6 +38,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<archive::Proxy>()?;
     m.add_class::<archive::Map>()?;
     m.add_class::<blend::Blend>()?;
+    m.add_class::<prepared::Prepared>()?;
     m.add_class::<brdf::BrdfBlend>()?;
     m.add_function(wrap_pyfunction!(bakeapi::bake, m)?)?;
     m.add_function(wrap_pyfunction!(bakeapi::manifest_archives, m)?)?;

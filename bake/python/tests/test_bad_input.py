@@ -133,3 +133,59 @@ def test_manifests_and_bakes_are_checked(tmp_path):
     with pytest.raises(otbake.BakeError) as e:
         otbake.bake(broken)
     assert "nope.png" in str(e.value) and e.value.report["products"]
+
+
+@pytest.mark.parametrize(
+    "weights, error, words",
+    [
+        ([0.5, 0.5], otbake.ArgumentError, "weights has 2 values for 3 maps"),
+        ([0.5, 0.6, -0.1], otbake.QueryError, "weights: the weight at index 2 (counting from 0, in manifest order) is negative"),
+        ([0.5, 0.5, 0.5], otbake.QueryError, "weights: weights sum to 1.5"),
+        (np.array(W), otbake.ArgumentError, "weights has dtype float64, it must be float32"),
+        (np.full((2, 3), 1 / 3, np.float32), otbake.ArgumentError, "weights has shape [2, 3]"),
+        (np.full((1, 3), 1 / 3, np.float32), otbake.ArgumentError, "one vector of 3 numbers"),
+        ("0.3,0.3,0.4", otbake.ArgumentError, "weights must be a sequence of 3 numbers"),
+    ],
+)
+def test_prepare_checks_its_weights(blend, weights, error, words):
+    with pytest.raises(error) as e:
+        blend.prepare(weights)
+    assert words in str(e.value)
+
+
+def test_prepared_queries_check_their_arguments(blend):
+    pr = blend.prepare(W)
+    with pytest.raises(otbake.ArgumentError, match="points has dtype float64, it must be float32"):
+        pr.point(np.full((4, 2), 0.5), 0.02)
+    with pytest.raises(otbake.ArgumentError, match=r"points has shape \[4, 3\], it must be \(n, 2\)"):
+        pr.point(np.full((4, 3), 0.5, np.float32), 0.02)
+    with pytest.raises(otbake.ArgumentError, match="points is not C-contiguous"):
+        pr.point(np.full((2, 4), 0.5, np.float32).T, 0.02)
+    with pytest.raises(otbake.ArgumentError, match="points must be a numpy array"):
+        pr.point([[0.5, 0.5]], 0.02)
+    with pytest.raises(otbake.QueryError, match=r"points\[1\]: a query coordinate is NaN"):
+        pr.point(np.array([[0.5, 0.5], [np.nan, 0.5]], np.float32), 0.02)
+    with pytest.raises(otbake.QueryError, match="kernel: kernel sigma must be a positive"):
+        pr.point(P, -1.0)
+    with pytest.raises(otbake.QueryError, match=r"indices\[1\]: sample index 99999 is out of range"):
+        pr.sample(np.array([0, 99999], np.uint32))
+    with pytest.raises(otbake.ArgumentError, match="indices has dtype int64, it must be uint32"):
+        pr.sample(np.array([0, 1]))
+    with pytest.raises(otbake.ArgumentError, match="hi has 3 rows but lo has 4"):
+        pr.range(P, P[:3].copy())
+    with pytest.raises(otbake.ArgumentError, match="res is"):
+        pr.splat((16,), 0.02)
+    with pytest.raises(otbake.ArgumentError, match="res is"):
+        pr.point_grid((16, 0), 0.02)
+    with pytest.raises(otbake.ArgumentError, match=r"start is \[16, 0\]"):
+        pr.point_grid((16, 8), 0.02, start=(16, 0))
+    with pytest.raises(otbake.ArgumentError, match=r"start is \[-1, 0\]"):
+        pr.splat_region((16, 8), 0.02, start=(-1, 0))
+    with pytest.raises(otbake.ArgumentError, match=r"size is \[4, 5\].*\[16, 4\]"):
+        pr.splat_region((16, 8), 0.02, start=(0, 4), size=(4, 5))
+    with pytest.raises(otbake.ArgumentError, match=r"size is \[0, 1\]"):
+        pr.splat_region_rgba((16, 8), 0.02, size=(0, 1))
+    with pytest.raises(otbake.QueryError, match="kernel: "):
+        pr.point_grid((16, 8), float("nan"))
+    with pytest.raises(otbake.QueryError, match="kernel: "):
+        pr.splat_region((16, 8), 0.0)

@@ -178,6 +178,155 @@ static void splatting(const OtbakeBlend *b) {
   CHECK_MESSAGE("axis 1");
 }
 
+/* Prepared blends: the size query, making one over a caller buffer (null, short, misaligned,
+ * overlapping), and its queries (handles, counts, coordinates, kernels, indices, regions, outputs
+ * inside the buffer). */
+static void preparing(const OtbakeBlend *b) {
+  float w[2] = {0.5f, 0.5f}, half[2] = {0.5f, 0.25f}, p[2] = {0.5f, 0.5f};
+  OtbakePreparedSizes sizes;
+  CHECK_STATUS(otbake_blend_prepared_sizes(NULL, &sizes), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_blend_prepared_sizes(b, NULL), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_blend_prepared_sizes(b, &sizes), OTBAKE_STATUS_OK);
+  size_t total = sizes.total;
+  CHECK(total > 0 && sizes.positions > 0, "a blend needs a buffer");
+  /* One spare float in front, so that the buffer can also be given one byte off. */
+  float *store = malloc((total + 2) * sizeof(float)), *buf = store + 1;
+  OtbakePrepared *pr = (OtbakePrepared *)&pr; /* not null: every refusal must clear it */
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, NULL, total, NULL, NULL, &pr), OTBAKE_STATUS_NULL_POINTER);
+  CHECK(pr == NULL, "a refused prepare left *out set");
+  CHECK_MESSAGE("buffer");
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, buf, total - 1, NULL, NULL, &pr), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_MESSAGE("buffer_len");
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, buf, 0, NULL, NULL, &pr), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, (float *)((char *)buf + 1), total, NULL, NULL, &pr),
+               OTBAKE_STATUS_MISALIGNED);
+  CHECK_STATUS(otbake_prepared_new(b, w, 1, buf, total, NULL, NULL, &pr), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_new(b, half, 2, buf, total, NULL, NULL, &pr), OTBAKE_STATUS_BAD_WEIGHTS);
+  CHECK_STATUS(otbake_prepared_new(b, NULL, 2, buf, total, NULL, NULL, &pr), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_new(NULL, w, 2, buf, total, NULL, NULL, &pr), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_new((const OtbakeBlend *)&sizes, w, 2, buf, total, NULL, NULL, &pr),
+               OTBAKE_STATUS_BAD_HANDLE);
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, buf, total, NULL, NULL, NULL), OTBAKE_STATUS_NULL_POINTER);
+  /* Weights inside the buffer, and the handle pointer inside it. */
+  buf[3] = 0.5f;
+  buf[4] = 0.5f;
+  CHECK_STATUS(otbake_prepared_new(b, buf + 3, 2, buf, total, NULL, NULL, &pr), OTBAKE_STATUS_OVERLAP);
+  CHECK_MESSAGE("buffer");
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, buf, total, NULL, NULL, (OtbakePrepared **)(buf + 8)),
+               OTBAKE_STATUS_OVERLAP);
+  CHECK(pr == NULL, "refused prepares left *out set");
+  CHECK_STATUS(otbake_prepared_new(b, w, 2, buf, total, NULL, NULL, &pr), OTBAKE_STATUS_OK);
+  if (!pr) {
+    free(store);
+    return;
+  }
+
+  /* Handles of the wrong kind, both ways. */
+  OtbakePointValue v, vs[8];
+  OtbakePreparedInfo info;
+  OtbakeBlendInfo binfo;
+  CHECK_STATUS(otbake_prepared_info((const OtbakePrepared *)b, &info), OTBAKE_STATUS_BAD_HANDLE);
+  CHECK_STATUS(otbake_blend_info((const OtbakeBlend *)pr, &binfo), OTBAKE_STATUS_BAD_HANDLE);
+  CHECK_STATUS(otbake_prepared_point(NULL, p, 2, 0.05f, &v), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_point((const OtbakePrepared *)((char *)pr + 1), p, 2, 0.05f, &v),
+               OTBAKE_STATUS_MISALIGNED);
+  CHECK_STATUS(otbake_prepared_info(pr, &info), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_blend_info(b, &binfo), OTBAKE_STATUS_OK);
+  CHECK(info.dim == binfo.dim && info.n == binfo.n && info.has_color == binfo.has_color, "prepared info: dim %u",
+        info.dim);
+  CHECK_STATUS(otbake_prepared_info(pr, (OtbakePreparedInfo *)(buf + 2)), OTBAKE_STATUS_OVERLAP);
+  /* Points: counts, coordinates, kernels, outputs. */
+  float bad_p[2] = {0.5f, NAN};
+  CHECK_STATUS(otbake_prepared_point(pr, p, 3, 0.05f, &v), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_point(pr, bad_p, 2, 0.05f, &v), OTBAKE_STATUS_BAD_COORDINATE);
+  CHECK_STATUS(otbake_prepared_point(pr, p, 2, -1.0f, &v), OTBAKE_STATUS_BAD_KERNEL);
+  CHECK_STATUS(otbake_prepared_point(pr, p, 2, 0.05f, NULL), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_point(pr, p, 2, 0.05f, (OtbakePointValue *)buf), OTBAKE_STATUS_OVERLAP);
+  CHECK_MESSAGE("prepared blend's buffer");
+  /* Inputs may lie in the buffer (its own positions, say). */
+  const float *positions = NULL;
+  size_t plen = 0;
+  CHECK_STATUS(otbake_prepared_positions(pr, &positions, &plen), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_prepared_positions(pr, NULL, &plen), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_point(pr, positions, 2, 0.05f, &v), OTBAKE_STATUS_OK);
+  CHECK(v.density > 0.0f, "a query at a point of the blend sees it");
+  float pts[8 * 2];
+  for (int i = 0; i < 16; i++) pts[i] = 0.1f * (float)(i % 9);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, 8, 0.05f, vs), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 3, 8, 0.05f, vs), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, SIZE_MAX / 2, 0.05f, vs), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, 8, 0.05f, NULL), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, 2, 0.05f, (OtbakePointValue *)pts), OTBAKE_STATUS_OVERLAP);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, 2, 0.05f, (OtbakePointValue *)(buf + total - 3)),
+               OTBAKE_STATUS_OVERLAP);
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, 0, 0.05f, NULL), OTBAKE_STATUS_OK);
+  pts[2 * 5] = INFINITY;
+  CHECK_STATUS(otbake_prepared_point_batch(pr, pts, 2, 8, 0.05f, vs), OTBAKE_STATUS_BAD_COORDINATE);
+  CHECK_MESSAGE("element 5");
+  /* Ranges and samples. */
+  OtbakeRangeValue r;
+  CHECK_STATUS(otbake_prepared_range(pr, p, NULL, 2, &r), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_MESSAGE("hi");
+  CHECK_STATUS(otbake_prepared_range(pr, p, bad_p, 2, &r), OTBAKE_STATUS_BAD_COORDINATE);
+  CHECK_STATUS(otbake_prepared_range(pr, p, p, 1, &r), OTBAKE_STATUS_BAD_COUNT);
+  OtbakeRangeValue rs[2];
+  CHECK_STATUS(otbake_prepared_range_batch(pr, pts, pts, 3, 2, rs), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_range_batch(pr, pts, pts, 2, 2, (OtbakeRangeValue *)pts), OTBAKE_STATUS_OVERLAP);
+  OtbakeSample smp, ss[2];
+  CHECK_STATUS(otbake_prepared_sample(pr, info.n, &smp), OTBAKE_STATUS_INDEX_OUT_OF_RANGE);
+  CHECK_STATUS(otbake_prepared_sample(pr, info.n - 1, &smp), OTBAKE_STATUS_OK);
+  uint32_t idx[2] = {0, info.n};
+  CHECK_STATUS(otbake_prepared_sample_batch(pr, idx, 2, ss), OTBAKE_STATUS_INDEX_OUT_OF_RANGE);
+  CHECK_MESSAGE("element 1");
+  CHECK_STATUS(otbake_prepared_sample_batch(pr, NULL, 2, ss), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_MESSAGE("indices");
+  /* Splats and point grids: size queries, lengths, regions, outputs. */
+  uint32_t res[2] = {8, 4}, zero[2] = {8, 0};
+  size_t cells = 0;
+  CHECK_STATUS(otbake_prepared_grid_cells(pr, res, 2, &cells), OTBAKE_STATUS_OK);
+  CHECK(cells == 32, "8x4 grid has %zu cells", cells);
+  CHECK_STATUS(otbake_prepared_grid_cells(pr, zero, 2, &cells), OTBAKE_STATUS_BAD_REGION);
+  CHECK_STATUS(otbake_prepared_grid_cells(pr, res, 1, &cells), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_grid_cells(pr, res, 2, (size_t *)buf), OTBAKE_STATUS_OVERLAP);
+  float density[32] = {0}, color[96] = {0}, rgba[4 * 32] = {0};
+  CHECK_STATUS(otbake_prepared_splat(pr, 0.05f, res, 2, density, 32, color, 96), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_prepared_splat(pr, 0.05f, res, 2, NULL, 32, color, 96), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_splat(pr, 0.05f, res, 2, density, 31, NULL, 0), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_splat(pr, 0.05f, res, 2, density, 32, color, 95), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_splat(pr, 0.05f, res, 2, density, 32, density + 4, 3), OTBAKE_STATUS_OVERLAP);
+  CHECK_STATUS(otbake_prepared_splat(pr, 0.05f, res, 2, buf, 32, NULL, 0), OTBAKE_STATUS_OVERLAP);
+  CHECK_STATUS(otbake_prepared_splat(pr, NAN, res, 2, density, 32, NULL, 0), OTBAKE_STATUS_BAD_KERNEL);
+  OtbakeRegion region = {{8, 4, 1, 1}, {0, 2, 0, 0}, {8, 2, 1, 1}};
+  CHECK_STATUS(otbake_prepared_region_cells(pr, region, &cells), OTBAKE_STATUS_OK);
+  CHECK(cells == 16, "region has %zu cells", cells);
+  CHECK_STATUS(otbake_prepared_splat_region(pr, 0.05f, region, density, 16, color, 48), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_prepared_splat_region(pr, 0.05f, region, density, 15, color, 48), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_splat_region(pr, 0.05f, region, density, 16, buf + 1, 48), OTBAKE_STATUS_OVERLAP);
+  CHECK_STATUS(otbake_prepared_splat_region_rgba(pr, 0.05f, region, rgba, 4 * 16), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_prepared_splat_region_rgba(pr, 0.05f, region, rgba, 4 * 16 + 1), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_splat_region_rgba(pr, 0.05f, region, NULL, 4 * 16), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_splat_region_rgba(pr, 0.05f, region, (float *)((char *)rgba + 2), 4 * 16),
+               OTBAKE_STATUS_MISALIGNED);
+  OtbakePointValue grid[16];
+  CHECK_STATUS(otbake_prepared_point_grid(pr, 0.05f, region, grid, 16), OTBAKE_STATUS_OK);
+  CHECK_STATUS(otbake_prepared_point_grid(pr, 0.05f, region, grid, 15), OTBAKE_STATUS_BAD_COUNT);
+  CHECK_STATUS(otbake_prepared_point_grid(pr, 0.05f, region, NULL, 16), OTBAKE_STATUS_NULL_POINTER);
+  CHECK_STATUS(otbake_prepared_point_grid(pr, 0.05f, region, (OtbakePointValue *)buf, 16), OTBAKE_STATUS_OVERLAP);
+  CHECK_STATUS(otbake_prepared_point_grid(pr, 0.0f, region, grid, 16), OTBAKE_STATUS_BAD_KERNEL);
+  region.size[1] = 3; /* rows 2..5 of a 4-row grid */
+  CHECK_STATUS(otbake_prepared_region_cells(pr, region, &cells), OTBAKE_STATUS_BAD_REGION);
+  CHECK_STATUS(otbake_prepared_point_grid(pr, 0.05f, region, grid, 16), OTBAKE_STATUS_BAD_REGION);
+  CHECK_MESSAGE("axis 1");
+  /* Refusals wrote nothing into the buffer: the handle still answers as before. */
+  OtbakePointValue again;
+  CHECK_STATUS(otbake_prepared_point(pr, positions, 2, 0.05f, &again), OTBAKE_STATUS_OK);
+  CHECK(!memcmp(&v, &again, sizeof v), "a refused call changed the prepared blend");
+  otbake_prepared_free((OtbakePrepared *)b); /* another kind: ignored */
+  otbake_prepared_free(NULL);
+  otbake_prepared_free(pr);
+  free(store);
+}
+
 /* The last error is per thread: another thread sees its own (empty) text. */
 static void *other_thread(void *arg) {
   (void)arg;
@@ -250,6 +399,7 @@ void check_bad_input(const char *proxy_path, const char *map_path, const char *o
   if (b) {
     querying(b);
     splatting(b);
+    preparing(b);
   }
   threads();
   brdf_arguments(brdf_proxy, brdf_map);

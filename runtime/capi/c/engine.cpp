@@ -2,18 +2,31 @@
 // one blend, and every frame splat it with new weights into an RGBA image — in bands of rows, one
 // per worker thread, no allocation by otbake — then write the frame (binary PPM).
 //
-//   otbake_engine OUT_PREFIX FRAMES SIZE PROXY MAP...
+//   otbake_engine [--mode blend|prepared] [--sigma PX] [--no-write] OUT_PREFIX FRAMES SIZE PROXY MAP...
 //
 // writes OUT_PREFIX-000.ppm ... (FRAMES images of SIZE x SIZE). Weights travel around the
 // inputs: frame t of T blends inputs i and i+1 at phase t*k/T. Exits non-zero on any refusal, or
 // if a frame is black (so a CI run checks that something was drawn).
+//
+// Modes (both draw the same bits):
+//   blend     (the default, and what an engine should do when the weights change every frame)
+//             otbake_blend_splat_region_rgba per band: the maps are mixed as each band reads them;
+//   prepared  otbake_prepared_new once per frame (its two halves on two threads, into one buffer
+//             allocated at load time), then otbake_prepared_splat_region_rgba per band: the way
+//             to go when one weight vector serves many queries (point grids, thousands of point
+//             queries, several splats), measured slower for one splat a frame (BENCHMARKS.md).
+// --sigma is the kernel's width in pixels (default 0.75). Prints the median time per frame (wall
+// and process CPU, the PPM write excluded); --no-write skips writing the frames (for timing).
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstring>
+#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -113,9 +126,47 @@ unsigned long write_ppm(const std::string &path, const std::vector<float> &rgba,
   return sum;
 }
 
+// A join for otbake_prepared_new: the two halves of the mixing on a new thread and this one.
+void join_on_two_threads(void *, OtbakeTaskFn run, void *a, void *b) {
+  std::thread other([run, a] { run(a); });
+  run(b);
+  other.join();
+}
+
+// Process CPU seconds (all threads).
+double cpu_seconds() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
 int run(int argc, char **argv) {
+  bool prepared_mode = false, write = true;
+  float sigma_px = 0.75f;
+  int a0 = 1;
+  for (; a0 < argc && std::strncmp(argv[a0], "--", 2) == 0; a0++) {
+    if (!std::strcmp(argv[a0], "--no-write")) {
+      write = false;
+    } else if (!std::strcmp(argv[a0], "--sigma") && a0 + 1 < argc) {
+      sigma_px = std::strtof(argv[++a0], nullptr);
+      if (!(sigma_px > 0.0f)) throw std::runtime_error("--sigma must be a positive number of pixels");
+    } else if (!std::strcmp(argv[a0], "--mode") && a0 + 1 < argc) {
+      const std::string m = argv[++a0];
+      if (m != "blend" && m != "prepared") throw std::runtime_error("--mode is blend or prepared, not " + m);
+      prepared_mode = m == "prepared";
+    } else {
+      throw std::runtime_error(std::string("unknown option ") + argv[a0]);
+    }
+  }
+  argc -= a0 - 1;
+  argv += a0 - 1;
   if (argc < 6) {
-    std::fprintf(stderr, "usage: %s OUT_PREFIX FRAMES SIZE PROXY MAP...\n", argv[0]);
+    std::fprintf(stderr, "usage: otbake_engine [--mode blend|prepared] [--sigma PX] [--no-write] OUT_PREFIX FRAMES SIZE PROXY MAP...\n");
     return 2;
   }
   if (otbake_abi_version() != OTBAKE_ABI_VERSION) throw std::runtime_error("otbake.h and the library differ");
@@ -148,13 +199,28 @@ int run(int argc, char **argv) {
   check(otbake_blend_info(blend.get(), &info), "info");
   if (info.dim != 2) throw std::runtime_error("this example draws 2D blends");
 
+  // The prepared mode's buffer, sized and allocated once at load time.
+  OtbakePreparedSizes sizes;
+  check(otbake_blend_prepared_sizes(blend.get(), &sizes), "prepared sizes");
+  std::vector<float> buffer(prepared_mode ? sizes.total : 0);
+
   // Per frame: new weights, one region splat per band of rows, each on its own thread.
   const unsigned workers = std::max(2u, std::thread::hardware_concurrency());
-  const float sigma = 0.75f / static_cast<float>(size);  // three quarters of a pixel
+  const float sigma = sigma_px / static_cast<float>(size);
   std::vector<float> rgba(4 * static_cast<size_t>(size) * size);
+  std::vector<double> walls, cpus;
   for (int t = 0; t < frames; t++) {
     std::vector<float> w = frame_weights(t, frames, info.k);
+    const auto wall0 = std::chrono::steady_clock::now();
+    const double cpu0 = cpu_seconds();
     std::fill(rgba.begin(), rgba.end(), 0.0f);
+    OtbakePrepared *prepared = nullptr;
+    if (prepared_mode) {
+      // The handle reads only `buffer`, which stays untouched until it is freed below.
+      check(otbake_prepared_new(blend.get(), w.data(), w.size(), buffer.data(), buffer.size(), join_on_two_threads,
+                                nullptr, &prepared),
+            "prepare");
+    }
     std::vector<std::thread> pool;
     std::vector<OtbakeStatus> status(workers, OTBAKE_STATUS_OK);
     const uint32_t band = (size + workers - 1) / workers;
@@ -165,17 +231,29 @@ int run(int argc, char **argv) {
       pool.emplace_back([&, j, first, rows] {
         OtbakeRegion region = {{size, size, 1, 1}, {0, first, 0, 0}, {size, rows, 1, 1}};
         float *out = &rgba[4 * static_cast<size_t>(first) * size];
-        status[j] = otbake_blend_splat_region_rgba(blend.get(), w.data(), w.size(), sigma, region, out,
-                                                   4 * static_cast<size_t>(rows) * size);
+        const size_t len = 4 * static_cast<size_t>(rows) * size;
+        status[j] = prepared ? otbake_prepared_splat_region_rgba(prepared, sigma, region, out, len)
+                             : otbake_blend_splat_region_rgba(blend.get(), w.data(), w.size(), sigma, region, out, len);
       });
     }
     for (auto &th : pool) th.join();
+    otbake_prepared_free(prepared);
+    cpus.push_back(cpu_seconds() - cpu0);
+    walls.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count());
     for (OtbakeStatus s : status) check(s, "splat");
-    char name[32];
-    std::snprintf(name, sizeof name, "-%03d.ppm", t);
-    if (write_ppm(prefix + name, rgba, size) == 0) throw std::runtime_error("frame " + std::to_string(t) + " is black");
+    unsigned long sum = 0;
+    for (size_t c = 0; c < rgba.size(); c += 4) sum += rgba[c + 3] > 0.0f;
+    if (sum == 0) throw std::runtime_error("frame " + std::to_string(t) + " is black");
+    if (write) {
+      char name[32];
+      std::snprintf(name, sizeof name, "-%03d.ppm", t);
+      if (write_ppm(prefix + name, rgba, size) == 0) throw std::runtime_error("frame " + std::to_string(t) + " is black");
+    }
   }
-  std::printf("engine: %d frames of %ux%u from %u maps, %u threads per frame\n", frames, size, size, info.k, workers);
+  std::printf("engine: %s mode, %d frames of %ux%u from %u maps, %u threads per frame; median frame %.3f ms wall, "
+              "%.3f ms CPU\n",
+              prepared_mode ? "prepared" : "blend", frames, size, size, info.k, workers, 1e3 * median(walls),
+              1e3 * median(cpus));
   return 0;
 }
 

@@ -13,7 +13,7 @@
 #define MAX_TOKENS 64
 #define MAX_RECORDS 64
 
-static uint32_t bits(float x) {
+uint32_t bits(float x) {
   uint32_t u;
   memcpy(&u, &x, sizeof u);
   return u;
@@ -25,7 +25,7 @@ static uint64_t bits64(double x) {
   return u;
 }
 
-static float f32_of(const char *hex) {
+float f32_of(const char *hex) {
   uint32_t u = (uint32_t)strtoul(hex, NULL, 16);
   float x;
   memcpy(&x, &u, sizeof x);
@@ -40,7 +40,7 @@ static double f64_of(const char *hex) {
 }
 
 /* Compares `n` floats bit for bit. */
-static void same_f32(const float *got, const float *want, size_t n, const char *what, int line) {
+void same_f32(const float *got, const float *want, size_t n, const char *what, int line) {
   for (size_t i = 0; i < n; i++) {
     CHECK(bits(got[i]) == bits(want[i]), "%s (record line %d) value %zu: C gave %a (%08x), Rust %a (%08x)",
           what, line, i, got[i], bits(got[i]), want[i], bits(want[i]));
@@ -94,7 +94,7 @@ static float *strided(const State *s, size_t count) {
   return w;
 }
 
-static void point_value(const OtbakePointValue *v, float out[5]) {
+void point_value(const OtbakePointValue *v, float out[5]) {
   out[0] = v->density;
   out[1] = v->mass;
   memcpy(out + 2, v->color, sizeof(float) * 3);
@@ -422,6 +422,9 @@ void check_expected(const char *expected_path) {
     } else if (!strcmp(t[0], "splat") || !strcmp(t[0], "rgba")) {
       flush(&s);
       splat_record(&s, t, f);
+    } else if (!strcmp(t[0], "prepared")) {
+      flush(&s);
+      records += check_prepared(s.blend, s.files, s.nfiles, s.w, s.k, t, nt, f, &s.line);
     } else if (s.brdf) {
       brdf_record(&s, t);
     } else {

@@ -1,7 +1,7 @@
 /* The C test of otbake's C ABI: `otbake_c_test EXPECTED PROXY MAP OTHER_MAP BRDF_PROXY BRDF_MAP`.
  *
  * EXPECTED is the file examples/c_expected.rs writes with the Rust runtime's answers (checked here
- * bit for bit through the C ABI); PROXY and MAP are archives of one bake, OTHER_MAP a map of a
+ * bit for bit through the C ABI, the prepared records by prepared.c); PROXY and MAP are archives of one bake, OTHER_MAP a map of a
  * bake with another proxy, BRDF_PROXY and BRDF_MAP archives of a BRDF bake (the bad-input half). runtime/capi/ci.sh bakes them, builds this test
  * with `cc` (once plain, once with -fsanitize=address,undefined) and runs it. Exit 0 when every
  * check passed. */

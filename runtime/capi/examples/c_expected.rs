@@ -1,4 +1,4 @@
-//! Writes the queries and the answers of the Rust runtime that the C test (`c/test.c`) repeats
+//! Writes the queries and the answers of the Rust runtime that the C test (`c/*.c`) repeats
 //! through the C ABI and compares bit for bit.
 //!
 //! Usage: `c_expected OUT BLEND_PROXY BLEND_MAP... -- BRDF_PROXY BRDF_MAP...`
@@ -6,10 +6,13 @@
 //! Every number is written as the hex of its bits (`f32` as 8 digits, `f64` as 16), so the C side
 //! compares bits, not decimal renderings. One record per line: a tag, the query's arguments, `=`,
 //! the answer. `blend` and `brdf` lines open the archives the following records query; `weights`
-//! lines set the weights of the records after them.
+//! lines set the weights of the records after them. A `prepared` line starts the records of the
+//! blend prepared for those weights (`Blend::prepare`, then `Prepared`'s queries), `pend` ends them.
 
 use otbake_brdf::{BrdfBlend, BrdfKernel, DEFAULT_ADAPTIVE};
-use otbake_runtime::{AdaptiveKernel, Blend, Kernel, Map, Proxy, Region, SplatTarget};
+use otbake_runtime::{
+    AdaptiveKernel, Blend, Kernel, Map, PointValue, Prepared, Proxy, Region, SplatTarget,
+};
 use rkyv::util::AlignedVec;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -114,7 +117,164 @@ fn blend_records(out: &mut String, blend: &Blend<'_, '_>, rng: &mut Rng) -> Resu
             writeln!(out, "bandwidth {} {index} = {}", hs(&ak), h(b)).unwrap();
         }
         splat_records(out, blend, &w)?;
+        prepared_records(out, blend, &w, rng)?;
     }
+    Ok(())
+}
+
+/// FNV-1a (64 bits) of the bits of `xs`, each `f32` as its four little-endian bytes: what the C
+/// test computes over the arrays a prepared handle points at.
+fn fnv(xs: &[f32]) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    for x in xs {
+        for b in x.to_bits().to_le_bytes() {
+            hash = (hash ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    hash
+}
+
+/// The records of the blend prepared for `w`: its buffer size, mean mass and arrays, point,
+/// range and sample queries, a point grid, and whole-grid, region and RGBA region splats.
+fn prepared_records(
+    out: &mut String,
+    blend: &Blend<'_, '_>,
+    w: &[f32],
+    rng: &mut Rng,
+) -> Result<(), String> {
+    let d = blend.dim();
+    let e = |e: otbake_runtime::Error| e.to_string();
+    let sizes = blend.prepared_sizes();
+    let mut store = vec![0.0f32; sizes.total()];
+    let buffers = sizes.split(&mut store).ok_or("sized by total")?;
+    let p: Prepared<'_> = blend.prepare(w, buffers).map_err(e)?;
+    writeln!(
+        out,
+        "prepared {} {} {} {:016x} {} {:016x}",
+        sizes.total(),
+        h(p.mean_mass()),
+        p.positions().len(),
+        fnv(p.positions()),
+        p.colors().len(),
+        fnv(p.colors())
+    )
+    .unwrap();
+    let sigma = 0.02 + 0.05 * rng.unit();
+    for _ in 0..24 {
+        let q: Vec<f32> = (0..d).map(|_| rng.unit()).collect();
+        let v = p.point(&q, Kernel { sigma }).map_err(e)?;
+        let vv = [v.density, v.mass, v.color[0], v.color[1], v.color[2]];
+        writeln!(out, "ppoint {} {} = {}", h(sigma), hs(&q), hs(&vv)).unwrap();
+        let lo: Vec<f32> = q.iter().map(|x| x - 0.2 * rng.unit()).collect();
+        let hi: Vec<f32> = q.iter().map(|x| x + 0.05 + 0.2 * rng.unit()).collect();
+        let r = p.range(&lo, &hi).map_err(e)?;
+        let rv = [r.mass, r.color[0], r.color[1], r.color[2]];
+        writeln!(
+            out,
+            "prange {} {} = {} {}",
+            hs(&lo),
+            hs(&hi),
+            r.count,
+            hs(&rv)
+        )
+        .unwrap();
+        let index = (rng.next() % u64::from(p.n())) as u32;
+        let s = p.sample(index).map_err(e)?;
+        writeln!(
+            out,
+            "psample {index} = {} {}",
+            hs(&s.position),
+            hs(&s.color)
+        )
+        .unwrap();
+    }
+    let res = [20u32, 14, 1, 1];
+    let kernel = Kernel { sigma: 0.04 };
+    // A point grid of an inner box of the grid.
+    let mut region = Region::full(res);
+    region.start[..2].copy_from_slice(&[3, 2]);
+    region.size[..2].copy_from_slice(&[11, 9]);
+    let cells = 11 * 9;
+    let mut values = vec![PointValue::default(); cells];
+    p.point_grid(kernel, region, &mut values).map_err(e)?;
+    writeln!(
+        out,
+        "pgrid {} {} {} 3 2 11 9 {cells}",
+        h(kernel.sigma),
+        res[0],
+        res[1]
+    )
+    .unwrap();
+    for v in &values {
+        let vv = [v.density, v.mass, v.color[0], v.color[1], v.color[2]];
+        writeln!(out, "cell {}", hs(&vv)).unwrap();
+    }
+    // The whole grid, planar.
+    let all = (res[0] * res[1]) as usize;
+    let (mut density, mut color) = (vec![0.0f32; all], vec![0.0f32; 3 * all]);
+    p.splat(
+        kernel,
+        SplatTarget {
+            res,
+            density: &mut density,
+            color: Some(&mut color),
+        },
+    )
+    .map_err(e)?;
+    writeln!(
+        out,
+        "psplat {} {} {} {all}",
+        h(kernel.sigma),
+        res[0],
+        res[1]
+    )
+    .unwrap();
+    for c in 0..all {
+        writeln!(
+            out,
+            "cell {} {}",
+            h(density[c]),
+            hs(&color[3 * c..3 * c + 3])
+        )
+        .unwrap();
+    }
+    // A band of rows, planar and RGBA.
+    let band = Region::rows(res, 4, 6);
+    let bcells = (res[0] * 6) as usize;
+    let (mut density, mut color) = (vec![0.0f32; bcells], vec![0.0f32; 3 * bcells]);
+    p.splat_region(kernel, band, &mut density, Some(&mut color))
+        .map_err(e)?;
+    writeln!(
+        out,
+        "pregion {} {} {} 4 6 {bcells}",
+        h(kernel.sigma),
+        res[0],
+        res[1]
+    )
+    .unwrap();
+    for c in 0..bcells {
+        writeln!(
+            out,
+            "cell {} {}",
+            h(density[c]),
+            hs(&color[3 * c..3 * c + 3])
+        )
+        .unwrap();
+    }
+    let mut rgba = vec![0.0f32; 4 * bcells];
+    p.splat_region_rgba(kernel, band, &mut rgba).map_err(e)?;
+    writeln!(
+        out,
+        "prgba {} {} {} 4 6 {bcells}",
+        h(kernel.sigma),
+        res[0],
+        res[1]
+    )
+    .unwrap();
+    for c in 0..bcells {
+        writeln!(out, "cell {}", hs(&rgba[4 * c..4 * c + 4])).unwrap();
+    }
+    writeln!(out, "pend").unwrap();
     Ok(())
 }
 

@@ -15,11 +15,13 @@
  *
  * - Archive bytes are the caller's and are never copied: they must start at a 16-byte boundary
  *   (mmap, aligned_alloc(16, ...), _Alignas(16)) and stay valid and unchanged until every handle
- *   made from them (proxy, map, blend, BRDF) is freed.
+ *   made from them (proxy, map, blend, BRDF) is freed. A prepared blend's buffer is the caller's
+ *   in the same way: valid and unwritten until the prepared handle is freed.
  * - Handles are immutable after they are made: any number of threads may query one handle at
  *   once. Only the _free functions need the handle to themselves.
  * - No query allocates: outputs go to caller buffers, sized by size queries
- *   (otbake_blend_grid_cells, otbake_blend_region_cells) or by the counts given.
+ *   (otbake_blend_grid_cells, otbake_blend_region_cells, otbake_blend_prepared_sizes, and the
+ *   otbake_prepared_ ones) or by the counts given.
  * - Every function returns OTBAKE_STATUS_OK or a refusal; otbake_status_message(code) gives the
  *   code's fixed message, otbake_last_error() the calling thread's last failure in detail (the
  *   function, the argument or batch element, the runtime's message). No function aborts or
@@ -29,13 +31,15 @@
  *   floats for every element (weight_stride == 0) or one vector per element, weight_stride floats
  *   apart (weight_stride >= k). A batch stops at the first element the runtime refuses: results
  *   of the elements before it are written, the status is that element's, and otbake_last_error()
- *   names its index. Output arrays must not overlap input arrays (OTBAKE_STATUS_OVERLAP).
+ *   names its index. Output arrays must not overlap input arrays (OTBAKE_STATUS_OVERLAP), nor
+ *   a prepared blend's buffer. Prepared batches (otbake_prepared_*_batch) take no weights.
  */
 /* Opaque handles: made by the _open/_new functions, freed by the matching _free. */
 typedef struct OtbakeProxy OtbakeProxy;
 typedef struct OtbakeMap OtbakeMap;
 typedef struct OtbakeBlend OtbakeBlend;
 typedef struct OtbakeBrdf OtbakeBrdf;
+typedef struct OtbakePrepared OtbakePrepared;
 
 
 /**
@@ -349,6 +353,79 @@ typedef struct {
    */
   bool has_spacings;
 } OtbakeMapInfo;
+
+/**
+ * How many floats the buffer of a prepared blend holds, part by part (the runtime's
+ * `PreparedSizes`); `otbake_prepared_new` takes one buffer of `total` floats and carves it in
+ * this order.
+ */
+typedef struct {
+  /**
+   * `n · dim` blended coordinates.
+   */
+  size_t positions;
+  /**
+   * `n · 3` blended color ratios, or 0 when the blend has no color.
+   */
+  size_t colors;
+  /**
+   * `nodes · 2 · dim` blended node boxes.
+   */
+  size_t node_boxes;
+  /**
+   * `nodes · 3` blended node color sums, or 0 without color or node color sums.
+   */
+  size_t node_colors;
+  /**
+   * The sum of the four: floats the buffer must hold.
+   */
+  size_t total;
+} OtbakePreparedSizes;
+
+/**
+ * Runs one half of a preparation: `run(task)` with a task pointer the join was given.
+ */
+typedef void (*OtbakeTaskFn)(void *task);
+
+/**
+ * The caller's way to run the two independent halves of a preparation (positions and node boxes;
+ * colors and node color sums), for instance on two threads of its job system: it calls `run(a)`
+ * and `run(b)`, each at most once, in any order or at the same time on two threads, and returns
+ * only after every call it made has returned (never calling `run` later). A half it does not call
+ * is run after it returns. `context` is the pointer given to `otbake_prepared_new`. May be null (no join: the halves run
+ * one after the other on the calling thread).
+ */
+typedef void (*OtbakeJoinFn)(void *context, OtbakeTaskFn run, void *a, void *b);
+
+/**
+ * What a prepared blend answers.
+ */
+typedef struct {
+  /**
+   * Dimension: coordinates per query point.
+   */
+  uint32_t dim;
+  /**
+   * Number of points: sample indices are `0 .. n`.
+   */
+  uint32_t n;
+  /**
+   * Borders of the domain.
+   */
+  OtbakeWrap wrap;
+  /**
+   * The blended mean mass `Σ w_k mean_mass_k`: a point value's `mass` is `density` times this.
+   */
+  float mean_mass;
+  /**
+   * Whether the blend carries color (otherwise colors are zeros).
+   */
+  bool has_color;
+  /**
+   * Whether range queries can answer (no color, or node color sums in every map).
+   */
+  bool has_node_colors;
+} OtbakePreparedInfo;
 
 /**
  * What a point query returns (the runtime's `PointValue`).
@@ -773,6 +850,375 @@ OtbakeStatus otbake_blend_info(const OtbakeBlend *blend, OtbakeBlendInfo *info);
  * `blend` is null or a live blend handle, used by no other thread, and never used again.
  */
 void otbake_blend_free(OtbakeBlend *blend);
+
+/**
+ * The sizes of the buffer `otbake_prepared_new` needs for this blend, stored at `*sizes`: allocate
+ * `sizes->total` floats (4-byte aligned; any contents).
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `blend` is a live blend handle; `sizes` points at writable memory for one struct.
+ */
+OtbakeStatus otbake_blend_prepared_sizes(const OtbakeBlend *blend, OtbakePreparedSizes *sizes);
+
+/**
+ * Mixes the blend for `weights[0..k]` once into the caller's `buffer` (`buffer_len` floats, at
+ * least `otbake_blend_prepared_sizes`'s `total`; its contents on entry are ignored) and stores a
+ * new prepared handle at `*out` (null on failure). Its queries answer with exactly the bits the
+ * blend's queries give for these weights, without mixing k maps at every node they visit.
+ *
+ * Costs one pass over every map (about `k · (dim + 3) · n` multiply-adds) and one over the tree's
+ * leaves: worth it for point grids, many point queries or several splats with one weight vector.
+ * For one splat per frame with new weights, `otbake_blend_splat_region_rgba` is faster (it mixes
+ * only what it reads and needs no buffer).
+ *
+ * The buffer must stay valid, and must not be written, until this handle is freed (reading it is
+ * fine: `otbake_prepared_positions` points into it); it must not overlap the weights or the
+ * archive bytes. The handle reads nothing else: the blend, its maps and their archive bytes may
+ * be freed before it. With another weight vector, free this handle and make a new one (the
+ * buffer may be reused).
+ *
+ * `join` may be null (the two halves of the mixing run one after the other on this thread), or
+ * an [`OtbakeJoinFn`] that runs them, for instance on two threads; `join_context` is passed to it
+ * unchanged. The result is the same bits either way.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED` (weights or buffer not 4-byte aligned), `BAD_HANDLE`,
+ * `BAD_COUNT` (k not the blend's, `buffer_len` below the size query's `total`), `BAD_WEIGHTS`,
+ * `OVERLAP` (the buffer overlaps the weights), `INTERNAL`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same blend except its
+ * `_free`; the new handle may be queried by all threads at once.
+ *
+ * # Safety
+ *
+ * `blend` is a live blend handle; `weights` points at `k` floats; `buffer` at `buffer_len`
+ * writable floats that stay valid and unwritten by anything else until the new handle is freed;
+ * `join`, if not null, keeps the contract of [`OtbakeJoinFn`]; `out` points at writable memory
+ * for one pointer.
+ */
+OtbakeStatus otbake_prepared_new(const OtbakeBlend *blend,
+                                 const float *weights,
+                                 size_t k,
+                                 float *buffer,
+                                 size_t buffer_len,
+                                 OtbakeJoinFn join,
+                                 void *join_context,
+                                 OtbakePrepared **out);
+
+/**
+ * What the prepared blend answers, stored at `*info`.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `OVERLAP` (`info` inside the buffer).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `info` points at writable memory for one struct.
+ */
+OtbakeStatus otbake_prepared_info(const OtbakePrepared *prepared, OtbakePreparedInfo *info);
+
+/**
+ * Where the blended coordinates live: `*values` points at `*len = n · dim` floats inside the
+ * caller's buffer, point-major in the tree order of `otbake_prepared_sample`'s indices (a
+ * periodic blend's are lifts, within half a period of `[0,1)^dim`). Read-only; valid until the
+ * handle is freed.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `values` and `len` point at writable memory for one
+ * pointer and one size.
+ */
+OtbakeStatus otbake_prepared_positions(const OtbakePrepared *prepared,
+                                       const float **values,
+                                       size_t *len);
+
+/**
+ * Where the blended color ratios live: `*values` points at `*len = n · 3` floats inside the
+ * caller's buffer (`*len` is 0 without color), in the order of the positions. Read-only; valid
+ * until the handle is freed.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * As [`otbake_prepared_positions`].
+ */
+OtbakeStatus otbake_prepared_colors(const OtbakePrepared *prepared,
+                                    const float **values,
+                                    size_t *len);
+
+/**
+ * Frees a prepared handle (null: nothing). The buffer is the caller's again: it may be freed or
+ * reused for the next `otbake_prepared_new`.
+ *
+ * Thread safety: no other call may use this handle during or after the call.
+ *
+ * # Safety
+ *
+ * `prepared` is null or a live prepared handle, used by no other thread, and never used again.
+ */
+void otbake_prepared_free(OtbakePrepared *prepared);
+
+/**
+ * The density, mass and color of the prepared blend at `point[0..dim]` under the fixed Gaussian
+ * kernel of width `sigma`, stored at `*out`: the bits `otbake_blend_point` gives for the
+ * prepared weights.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (dim not the blend's),
+ * `BAD_COORDINATE`, `BAD_KERNEL`, `OVERLAP` (`out` inside the buffer).
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `point` points at `dim` floats, `out` at one writable
+ * `OtbakePointValue`.
+ */
+OtbakeStatus otbake_prepared_point(const OtbakePrepared *prepared,
+                                   const float *point,
+                                   size_t dim,
+                                   float sigma,
+                                   OtbakePointValue *out);
+
+/**
+ * [`otbake_prepared_point`] for `count` points: `points` holds `count · dim` floats, results go
+ * to `out[0 .. count]`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `points` points at `count · dim` floats, `out` at
+ * `count` writable values.
+ */
+OtbakeStatus otbake_prepared_point_batch(const OtbakePrepared *prepared,
+                                         const float *points,
+                                         size_t dim,
+                                         size_t count,
+                                         float sigma,
+                                         OtbakePointValue *out);
+
+/**
+ * Points, mass and color of the prepared blend inside the closed box `[lo, hi]` (`dim`
+ * coordinates each), stored at `*out`: the bits of `otbake_blend_range` for the prepared
+ * weights.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT`, `BAD_COORDINATE`,
+ * `MISSING_ATTRIBUTE` (a colored map without node color sums), `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `lo` and `hi` point at `dim` floats each, `out` at one
+ * writable `OtbakeRangeValue`.
+ */
+OtbakeStatus otbake_prepared_range(const OtbakePrepared *prepared,
+                                   const float *lo,
+                                   const float *hi,
+                                   size_t dim,
+                                   OtbakeRangeValue *out);
+
+/**
+ * [`otbake_prepared_range`] for `count` boxes: `lo` and `hi` hold `count · dim` floats each.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `lo` and `hi` point at `count · dim` floats each, `out`
+ * at `count` writable values.
+ */
+OtbakeStatus otbake_prepared_range_batch(const OtbakePrepared *prepared,
+                                         const float *lo,
+                                         const float *hi,
+                                         size_t dim,
+                                         size_t count,
+                                         OtbakeRangeValue *out);
+
+/**
+ * The `index`-th point of the prepared blend (a sample of the barycenter: each point carries
+ * mass 1/n), stored at `*out`: the bits of `otbake_blend_sample` for the prepared weights.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `INDEX_OUT_OF_RANGE`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `out` points at one writable `OtbakeSample`.
+ */
+OtbakeStatus otbake_prepared_sample(const OtbakePrepared *prepared,
+                                    uint32_t index,
+                                    OtbakeSample *out);
+
+/**
+ * [`otbake_prepared_sample`] for the `count` indices `indices[0..count]`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `indices` points at `count` values, `out` at `count`
+ * writable samples.
+ */
+OtbakeStatus otbake_prepared_sample_batch(const OtbakePrepared *prepared,
+                                          const uint32_t *indices,
+                                          size_t count,
+                                          OtbakeSample *out);
+
+/**
+ * The number of cells of a `res[0..dim]` grid, stored at `*cells`: `otbake_prepared_splat`
+ * needs `cells` density floats and `3 · cells` color floats.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (dim not the blend's),
+ * `BAD_REGION`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `res` points at `dim` values, `cells` at one writable
+ * size.
+ */
+OtbakeStatus otbake_prepared_grid_cells(const OtbakePrepared *prepared,
+                                        const uint32_t *res,
+                                        size_t dim,
+                                        size_t *cells);
+
+/**
+ * The number of cells of `region`, stored at `*cells`: `otbake_prepared_point_grid` needs
+ * `cells` values, `otbake_prepared_splat_region` `cells` density and `3 · cells` color floats,
+ * `otbake_prepared_splat_region_rgba` `4 · cells` floats.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_REGION`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `cells` points at one writable size.
+ */
+OtbakeStatus otbake_prepared_region_cells(const OtbakePrepared *prepared,
+                                          OtbakeRegion region,
+                                          size_t *cells);
+
+/**
+ * ADDS the kernel reconstruction of the prepared blend (fixed kernel `sigma`) to every cell of a
+ * `res[0..dim]` grid: `density[0 .. cells]` and, unless `color` is null, `color[0 .. 3 · cells]`
+ * (premultiplied RGB), axis 0 fastest — the bits `otbake_blend_splat` adds for the prepared
+ * weights.
+ *
+ * Errors: `NULL_POINTER` (density), `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (dim, or a buffer
+ * other than `otbake_prepared_grid_cells` says), `BAD_KERNEL`, `BAD_REGION`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `res` points at `dim` values, `density` at
+ * `density_len` writable floats and `color` (unless null) at `color_len`.
+ */
+OtbakeStatus otbake_prepared_splat(const OtbakePrepared *prepared,
+                                   float sigma,
+                                   const uint32_t *res,
+                                   size_t dim,
+                                   float *density,
+                                   size_t density_len,
+                                   float *color,
+                                   size_t color_len);
+
+/**
+ * ADDS the splat of the prepared blend (fixed kernel `sigma`) to the cells of `region` only:
+ * `density[0 .. cells]` and, unless `color` is null, `color[0 .. 3 · cells]`, the region's
+ * cells axis 0 fastest — exactly the bits `otbake_prepared_splat` adds to those cells of the
+ * whole grid.
+ *
+ * Errors: `NULL_POINTER` (density), `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (a buffer other than
+ * `otbake_prepared_region_cells` says), `BAD_KERNEL`, `BAD_REGION`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `density` points at `density_len` writable floats and
+ * `color` (unless null) at `color_len`.
+ */
+OtbakeStatus otbake_prepared_splat_region(const OtbakePrepared *prepared,
+                                          float sigma,
+                                          OtbakeRegion region,
+                                          float *density,
+                                          size_t density_len,
+                                          float *color,
+                                          size_t color_len);
+
+/**
+ * ADDS the splat of the prepared blend (fixed kernel `sigma`) to the cells of `region` as RGBA:
+ * `rgba[0 .. 4 · cells]`, per cell the premultiplied RGB and then the density — the bits
+ * `otbake_blend_splat_region_rgba` adds for the prepared weights.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (`rgba_len` other than
+ * `4 · otbake_prepared_region_cells`), `BAD_KERNEL`, `BAD_REGION`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `rgba` points at `rgba_len` writable floats.
+ */
+OtbakeStatus otbake_prepared_splat_region_rgba(const OtbakePrepared *prepared,
+                                               float sigma,
+                                               OtbakeRegion region,
+                                               float *rgba,
+                                               size_t rgba_len);
+
+/**
+ * Point queries at the centers of every cell of `region` (fixed kernel `sigma`), written to
+ * `out[0 .. out_len]`, `out_len` the region's cells (`otbake_prepared_region_cells`), axis 0
+ * fastest: `out[c]` is the bits of `otbake_prepared_point` at cell `c`'s center, at the cost of
+ * one traversal for the whole region. Keeps some 50 KB of scratch on the calling thread's stack.
+ *
+ * Errors: `NULL_POINTER`, `MISALIGNED`, `BAD_HANDLE`, `BAD_COUNT` (`out_len` not the region's
+ * cells), `BAD_KERNEL`, `BAD_REGION`, `OVERLAP`.
+ *
+ * Thread safety: any thread, concurrently with every other call on the same handle except
+ * its `_free` (the handle is immutable); the call writes only its own outputs.
+ *
+ * # Safety
+ *
+ * `prepared` is a live prepared handle; `out` points at `out_len` writable values.
+ */
+OtbakeStatus otbake_prepared_point_grid(const OtbakePrepared *prepared,
+                                        float sigma,
+                                        OtbakeRegion region,
+                                        OtbakePointValue *out,
+                                        size_t out_len);
 
 /**
  * The density, mass and color of the blend for `weights[0..k]` at `point[0..dim]` under the

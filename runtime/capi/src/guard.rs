@@ -159,10 +159,8 @@ impl<T: Copy> Out<'_, T> {
 /// Refuses an output buffer that overlaps an input buffer (Rust may not alias them; C callers
 /// sometimes reuse one array for both).
 pub(crate) fn disjoint<T, U>(output: &[T], name: &'static str, input: &[U]) -> Result<(), Failure> {
-    let (o, i) = (output.as_ptr_range(), input.as_ptr_range());
-    let (o0, o1) = (o.start as usize, o.end as usize);
-    let (i0, i1) = (i.start as usize, i.end as usize);
-    if o0 < o1 && i0 < i1 && o0 < i1 && i0 < o1 {
+    let i = input.as_ptr_range();
+    if overlaps(output, i.start as usize..i.end as usize) {
         return Err(Failure::arg(
             OtbakeStatus::Overlap,
             name,
@@ -170,6 +168,13 @@ pub(crate) fn disjoint<T, U>(output: &[T], name: &'static str, input: &[U]) -> R
         ));
     }
     Ok(())
+}
+
+/// Whether `output` shares a byte with the address range `bytes` (empty ranges share none).
+pub(crate) fn overlaps<T>(output: &[T], bytes: core::ops::Range<usize>) -> bool {
+    let o = output.as_ptr_range();
+    let (o0, o1) = (o.start as usize, o.end as usize);
+    o0 < o1 && bytes.start < bytes.end && o0 < bytes.end && bytes.start < o1
 }
 
 /// A handle type: its box starts with a magic number, checked on every use.

@@ -7,7 +7,10 @@
 //! blend (`otbake_blend_new`: every map must belong to the proxy), then query it with any weights:
 //! point queries under a fixed or density-adaptive kernel, range queries, samples, kernel widths,
 //! whole-grid splats and region splats into RGBA (the per-frame call), each also as a batch over
-//! arrays; BRDF blends evaluate, sample and give the pdf of a blended BRDF.
+//! arrays; BRDF blends evaluate, sample and give the pdf of a blended BRDF. A blend may also be
+//! prepared for one weight vector (`otbake_prepared_new`: mixed once into a buffer the caller
+//! sizes with `otbake_blend_prepared_sizes` and owns), whose queries — the same plus point grids
+//! and planar region splats — take no weights and give the blend's bits.
 //!
 //! Engine conventions: handles are allocated once when opened and immutable afterwards, so every
 //! thread may query them at once; no query allocates (outputs go to caller buffers, sized by size
@@ -22,7 +25,9 @@
 //!   handle magic first;
 //! * `status`: codes, messages and the thread-local last error;
 //! * `handles`: proxy, map and blend handles (open, info, free);
-//! * `args`: the value types and the batch loop; `queries`, `splat`, `brdf`: the entry points.
+//! * `prepared`: prepared handles over caller buffers (size query, new, info, arrays, free);
+//! * `args`: the value types and the batch loop; `queries`, `splat`, `brdf`, `prepared_queries`:
+//!   the entry points.
 //!
 //! Architecture Invariant: `unsafe` lives in this crate only (the runtime forbids it), and every
 //! block states its safety argument; queries never allocate (a test counts allocations).
@@ -33,6 +38,8 @@ mod args;
 mod brdf;
 mod guard;
 mod handles;
+mod prepared;
+mod prepared_queries;
 mod queries;
 mod splat;
 mod status;
@@ -43,6 +50,8 @@ pub use args::{
 };
 pub use brdf::*;
 pub use handles::*;
+pub use prepared::*;
+pub use prepared_queries::*;
 pub use queries::*;
 pub use splat::*;
 pub use status::{otbake_last_error, otbake_status_message, OtbakeStatus, OTBAKE_STATUS_COUNT};

@@ -17,7 +17,7 @@ use otbake_runtime::{Kernel, Region, SplatTarget, MAX_DIM};
 /// # Safety
 ///
 /// `res` points at `dim` readable values.
-unsafe fn resolution(
+pub(crate) unsafe fn resolution(
     res: *const u32,
     dim: usize,
     blend_dim: usize,

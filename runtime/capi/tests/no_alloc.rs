@@ -1,6 +1,7 @@
 //! Proof that no C ABI query allocates: a counting global allocator sees zero allocations across
-//! every query and batch of a blend and a BRDF blend, their error paths (which write the
-//! thread's last error) included. Opening handles allocates (one box each) and happens before.
+//! every query and batch of a blend, a prepared blend and a BRDF blend, their error paths (which
+//! write the thread's last error) included. Opening handles allocates (one box each) and happens
+//! before; so does making the prepared handle (its buffer is the test's).
 
 mod common;
 
@@ -116,6 +117,34 @@ fn queries_do_not_allocate() {
         size: [16, 4, 1, 1],
     };
     let mut cells = 0usize;
+    let mut sizes = OtbakePreparedSizes::default();
+    // SAFETY: a live blend handle, a valid out pointer.
+    assert_eq!(
+        unsafe { otbake_blend_prepared_sizes(blend, &mut sizes) },
+        OtbakeStatus::Ok
+    );
+    let mut store = vec![0.0f32; sizes.total];
+    let mut prepared = null_mut();
+    // SAFETY: `store` outlives the handle (freed at the end) and is not written meanwhile.
+    assert_eq!(
+        unsafe {
+            otbake_prepared_new(
+                blend,
+                w.as_ptr(),
+                2,
+                store.as_mut_ptr(),
+                store.len(),
+                None,
+                null_mut(),
+                &mut prepared,
+            )
+        },
+        OtbakeStatus::Ok
+    );
+    let mut grid = vec![OtbakePointValue::default(); 64];
+    let (mut pdensity, mut pcolor) = (vec![0.0f32; 64], vec![0.0f32; 64 * 3]);
+    let mut info = std::mem::MaybeUninit::<OtbakePreparedInfo>::uninit();
+    let (mut at, mut len) = (std::ptr::null::<f32>(), 0usize);
 
     COUNTING.with(|c| c.set(true));
     let probe = ALLOCATIONS.load(Ordering::SeqCst);
@@ -243,6 +272,51 @@ fn queries_do_not_allocate() {
                 32,
                 bs.as_mut_ptr(),
             ),
+            otbake_blend_prepared_sizes(blend, &mut sizes),
+            otbake_prepared_info(prepared, info.as_mut_ptr()),
+            otbake_prepared_positions(prepared, &mut at, &mut len),
+            otbake_prepared_colors(prepared, &mut at, &mut len),
+            otbake_prepared_point(prepared, points.as_ptr(), 2, 0.05, values.as_mut_ptr()),
+            otbake_prepared_point_batch(
+                prepared,
+                points.as_ptr(),
+                2,
+                32,
+                0.05,
+                values.as_mut_ptr(),
+            ),
+            otbake_prepared_range_batch(
+                prepared,
+                points.as_ptr(),
+                points.as_ptr(),
+                2,
+                32,
+                ranges.as_mut_ptr(),
+            ),
+            otbake_prepared_sample_batch(prepared, indices.as_ptr(), 32, samples.as_mut_ptr()),
+            otbake_prepared_grid_cells(prepared, [16u32, 16].as_ptr(), 2, &mut cells),
+            otbake_prepared_region_cells(prepared, region, &mut cells),
+            otbake_prepared_splat(
+                prepared,
+                0.05,
+                [16u32, 16].as_ptr(),
+                2,
+                density.as_mut_ptr(),
+                256,
+                color.as_mut_ptr(),
+                768,
+            ),
+            otbake_prepared_splat_region(
+                prepared,
+                0.05,
+                region,
+                pdensity.as_mut_ptr(),
+                64,
+                pcolor.as_mut_ptr(),
+                192,
+            ),
+            otbake_prepared_splat_region_rgba(prepared, 0.05, region, rgba.as_mut_ptr(), 256),
+            otbake_prepared_point_grid(prepared, 0.05, region, grid.as_mut_ptr(), 64),
         ]
     };
     // Refusals record their text in the thread's last-error buffer: no allocation either.
@@ -278,6 +352,8 @@ fn queries_do_not_allocate() {
                 dirs.as_ptr(),
                 rgb.as_mut_ptr(),
             ),
+            otbake_prepared_sample(prepared, 400, samples.as_mut_ptr()),
+            otbake_prepared_point_grid(prepared, 0.05, region, grid.as_mut_ptr(), 63),
         ]
     };
     let after = ALLOCATIONS.load(Ordering::SeqCst);
@@ -292,7 +368,9 @@ fn queries_do_not_allocate() {
             OtbakeStatus::BadCount,
             OtbakeStatus::NullPointer,
             OtbakeStatus::IndexOutOfRange,
-            OtbakeStatus::BadWeights
+            OtbakeStatus::BadWeights,
+            OtbakeStatus::IndexOutOfRange,
+            OtbakeStatus::BadCount,
         ]
     );
     assert_eq!(
@@ -302,8 +380,11 @@ fn queries_do_not_allocate() {
         after - before
     );
     assert!(values.iter().any(|v| v.density > 0.0) && density.iter().any(|&d| d > 0.0));
-    // SAFETY: the handles are live and used by nothing else.
+    assert!(grid.iter().any(|v| v.density > 0.0) && pdensity.iter().any(|&d| d > 0.0));
+    // SAFETY: the handles are live and used by nothing else; `store` is freed after its handle.
     unsafe {
+        otbake_prepared_free(prepared);
+        drop(store);
         otbake_blend_free(blend);
         otbake_brdf_free(brdf);
         otbake_proxy_free(proxy);

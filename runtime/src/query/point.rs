@@ -7,8 +7,10 @@ use crate::source::Source;
 use otbake_formats::tree::Node;
 use otbake_formats::MAX_DIM;
 
-/// What a point query returns.
+/// What a point query returns. `repr(C)`, so that the C ABI can hand a caller's array of its
+/// own identical struct to [`Prepared::point_grid`](crate::Prepared::point_grid) without a copy.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
 pub struct PointValue {
     /// Reconstructed probability density (integrates to 1 over the domain).
     pub density: f32,
