@@ -750,12 +750,14 @@ fn short_campaign_of_every_decoder_finds_nothing() {
         let target = fuzzer::target(name).unwrap();
         let corpus = target.seeds(&corpus_dir());
         let config = Config {
+            first: 0,
             iterations: executions,
             seed: 0xC1,
             // No watchdog in tests: a hang shows as a test that does not end.
             timeout: None,
             findings: findings.clone(),
             progress: None,
+            report_every: 0,
         };
         let s = fuzzer::run(target.as_ref(), &corpus, &config);
         assert!(

@@ -1,7 +1,7 @@
 //! `otbake-fuzz`: fuzzing campaigns over the corpus in tests/fuzz/corpus/ (FUZZING.md).
 //!
 //! ```text
-//! otbake-fuzz --target NAME|all [--seed S] [--timeout-ms MS] [ITERATIONS] [SEED]
+//! otbake-fuzz --target NAME|all [--seed S] [--first INDEX] [--timeout-ms MS] [ITERATIONS] [SEED]
 //! otbake-fuzz --target NAME --seed S --replay INDEX      # one execution, its panic not caught
 //! otbake-fuzz [ITERATIONS] [SEED]                        # the archive target (the original form)
 //! ```
@@ -10,6 +10,9 @@
 //! executions, how many inputs were accepted all the way through, findings and the rate; findings
 //! (panics, memory past the cap, executions past the timeout — default 10 s — and crashes) are
 //! written to tests/fuzz/findings/TARGET-SEED-INDEX/ and the exit status is non-zero.
+//!
+//! `--first INDEX` runs executions `INDEX .. INDEX + ITERATIONS`: a campaign can be run in parts
+//! (the parts of one seed add up to one campaign, execution for execution).
 //!
 //! The campaign runs in a child process: when a crash (a stack overflow, an abort) kills it, this
 //! parent regenerates the input of the execution the child last recorded and writes it as a
@@ -29,6 +32,7 @@ struct Args {
     seed: u64,
     timeout: Duration,
     replay: Option<u64>,
+    first: u64,
 }
 
 fn parse() -> Result<Args, String> {
@@ -37,6 +41,7 @@ fn parse() -> Result<Args, String> {
     let mut seed = None;
     let mut timeout_ms = 10_000u64;
     let mut replay = None;
+    let mut first = 0;
     let mut it = std::env::args().skip(1);
     let number = |flag: &str, v: Option<String>| -> Result<u64, String> {
         v.as_deref()
@@ -49,6 +54,7 @@ fn parse() -> Result<Args, String> {
             "--seed" => seed = Some(number("--seed", it.next())?),
             "--timeout-ms" => timeout_ms = number("--timeout-ms", it.next())?,
             "--replay" => replay = Some(number("--replay", it.next())?),
+            "--first" => first = number("--first", it.next())?,
             "-h" | "--help" => return Err(String::new()),
             _ => positional.push(a),
         }
@@ -80,6 +86,7 @@ fn parse() -> Result<Args, String> {
         seed,
         timeout: Duration::from_millis(timeout_ms),
         replay,
+        first,
     })
 }
 
@@ -91,7 +98,7 @@ fn main() -> ExitCode {
     let args = match parse() {
         Ok(a) => a,
         Err(e) => {
-            let usage = "usage: otbake-fuzz --target NAME|all [--seed S] [--timeout-ms MS] [--replay INDEX] [ITERATIONS] [SEED]";
+            let usage = "usage: otbake-fuzz --target NAME|all [--seed S] [--first INDEX] [--timeout-ms MS] [--replay INDEX] [ITERATIONS] [SEED]";
             if e.is_empty() {
                 println!("{usage}");
                 return ExitCode::SUCCESS;
@@ -134,17 +141,20 @@ fn child(args: &Args, progress: PathBuf) -> ExitCode {
     for target in &args.targets {
         let corpus = target.seeds(&root().join("corpus"));
         let config = Config {
+            first: args.first,
             iterations: args.iterations,
             seed: args.seed,
             timeout: Some(args.timeout),
             findings: root().join("findings"),
             progress: Some(progress.clone()),
+            report_every: 1_000_000,
         };
         let s = fuzz::run(target.as_ref(), &corpus, &config);
         println!(
-            "{}: {} executions, seed {}: {} accepted all the way through, {} findings, slowest {:.1} ms, {:.1} s ({:.0} per second)",
+            "{}: {} executions (from {}), seed {}: {} accepted all the way through, {} findings, slowest {:.1} ms, {:.1} s ({:.0} per second)",
             target.name(),
             s.executions,
+            args.first,
             args.seed,
             s.accepted,
             s.findings.len(),

@@ -140,6 +140,9 @@ pub fn files_of(dir: &Path) -> Vec<Case> {
 /// How a campaign runs.
 #[derive(Clone, Debug)]
 pub struct Config {
+    /// Index of the first execution: a campaign of executions `first .. first + iterations` is
+    /// the continuation of one that ran `0 .. first` with the same seed.
+    pub first: u64,
     /// Executions.
     pub iterations: u64,
     /// Seed of every execution's generator.
@@ -150,6 +153,8 @@ pub struct Config {
     pub findings: PathBuf,
     /// A file the current execution's index is written to before it runs (for the supervisor).
     pub progress: Option<PathBuf>,
+    /// Print a progress line to stderr every this many executions (0: never).
+    pub report_every: u64,
 }
 
 /// What a campaign did.
@@ -326,7 +331,7 @@ pub fn run(target: &dyn Target, corpus: &[Case], config: &Config) -> Summary {
     let mut summary = Summary::default();
     pool.install(|| {
         IN_EXECUTION.with(|f| f.set(true));
-        for index in 0..config.iterations {
+        for index in config.first..config.first.saturating_add(config.iterations) {
             let (case, mut rng) = generate(target, corpus, config.seed, index);
             if let Some(f) = &progress {
                 use std::os::unix::fs::FileExt;
@@ -355,6 +360,16 @@ pub fn run(target: &dyn Target, corpus: &[Case], config: &Config) -> Summary {
             STARTED.store(0, Ordering::Release);
             summary.slowest = summary.slowest.max(started.elapsed());
             summary.executions += 1;
+            if config.report_every > 0 && summary.executions % config.report_every == 0 {
+                eprintln!(
+                    "{}: {} executions ({} accepted, {} findings), {:.0} s",
+                    target.name(),
+                    summary.executions,
+                    summary.accepted,
+                    summary.findings.len(),
+                    t0.elapsed().as_secs_f64()
+                );
+            }
             match result {
                 Ok(accepted) => summary.accepted += accepted as u64,
                 Err(_) => {
