@@ -264,30 +264,53 @@ fn decode_exr(path: &Path, budget: &Budget) -> Result<LinearPixels, InputError> 
             check_pixels(path, size.width() as u64, size.height() as u64, 0, budget)?;
         }
     }
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |resolution: Vec2<usize>, _channels: &RgbaChannels| {
-            (
-                resolution.width(),
-                vec![[0f32; 4]; resolution.width() * resolution.height()],
+    // Decompressed on this thread (`non_parallel`) and inside `catch_unwind`: the exr crate's
+    // codecs can panic on damaged data (B44 on a block that is not, found by fuzzing), and a panic
+    // in its parallel decompressor's rayon tasks aborts the process; here it becomes an error.
+    let read = || {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |resolution: Vec2<usize>, _channels: &RgbaChannels| {
+                    (
+                        resolution.width(),
+                        vec![[0f32; 4]; resolution.width() * resolution.height()],
+                    )
+                },
+                |pixels: &mut (usize, Vec<[f32; 4]>),
+                 pos: Vec2<usize>,
+                 (r, g, b, a): (f32, f32, f32, f32)| {
+                    pixels.1[pos.y() * pixels.0 + pos.x()] = [r, g, b, a];
+                },
             )
-        },
-        |pixels: &mut (usize, Vec<[f32; 4]>),
-         pos: Vec2<usize>,
-         (r, g, b, a): (f32, f32, f32, f32)| {
-            pixels.1[pos.y() * pixels.0 + pos.x()] = [r, g, b, a];
-        },
-    )
-    .map_err(|e| match e {
-        exr::error::Error::Io(source) => InputError::Io {
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_file(path)
+    };
+    let image = std::panic::catch_unwind(read)
+        .map_err(|panic| InputError::Exr {
             path: path.to_path_buf(),
-            source,
-        },
-        other => InputError::Exr {
-            path: path.to_path_buf(),
-            message: other.to_string(),
-        },
-    })?;
+            message: format!(
+                "the OpenEXR decoder failed on damaged data ({})",
+                panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "no message".into())
+            ),
+        })?
+        .map_err(|e| match e {
+            exr::error::Error::Io(source) => InputError::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+            other => InputError::Exr {
+                path: path.to_path_buf(),
+                message: other.to_string(),
+            },
+        })?;
     let size = image.layer_data.size;
     let (width, height) = (size.width(), size.height());
     if width == 0 || height == 0 {
@@ -646,6 +669,26 @@ mod tests {
                     && msg.contains(&format!("holds {} bytes", bad.len())),
                 "{msg}"
             );
+        }
+    }
+
+    /// Found by the fuzzer (`image` target, overflow checks on): a ZIP EXR relabelled B44 (3 bytes
+    /// changed) made the exr crate's B44 decoder overflow inside its parallel decompressor's rayon
+    /// task, and a panic there aborts the process. Decoded on the calling thread under
+    /// `catch_unwind`, it is an error naming the file.
+    #[test]
+    fn a_damaged_exr_block_is_an_error_not_an_abort() {
+        let fixture = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../tests/fuzz/corpus/image/finding-b44-overflow.exr");
+        let file = TempFile::new("b44", "exr");
+        std::fs::copy(&fixture, &file.0).unwrap();
+        match load_image(&file.0, DensityChannel::Luminance) {
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains(&file.0.display().to_string()), "{msg}");
+            }
+            // Without overflow checks the B44 arithmetic wraps instead of panicking.
+            Ok(_) => assert!(!cfg!(debug_assertions), "the damaged block was decoded"),
         }
     }
 }

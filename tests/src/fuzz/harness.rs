@@ -13,7 +13,6 @@
 //! finding, since the execution cannot be stopped safely.
 
 use super::Rng;
-use std::cell::Cell;
 use std::io::Write;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -197,10 +196,6 @@ static CURRENT: Mutex<Option<Current>> = Mutex::new(None);
 static STARTED: AtomicU64 = AtomicU64::new(0);
 static LAST_PANIC: Mutex<String> = Mutex::new(String::new());
 
-thread_local! {
-    static IN_EXECUTION: Cell<bool> = const { Cell::new(false) };
-}
-
 fn epoch() -> Instant {
     static E: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
     *E.get_or_init(Instant::now)
@@ -260,12 +255,9 @@ fn install_panic_hook() {
     ONCE.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            let ours = IN_EXECUTION.with(Cell::get)
-                || std::thread::current()
-                    .name()
-                    .is_some_and(|n| n.starts_with("otbake-fuzz"))
-                || STARTED.load(Ordering::Relaxed) != 0;
-            if ours {
+            // Panics while an execution runs are findings, reported with their input; any other
+            // (a mutator's, a test's) is printed as usual.
+            if STARTED.load(Ordering::Relaxed) != 0 {
                 if let Ok(mut last) = LAST_PANIC.lock() {
                     *last = info.to_string();
                 }
@@ -330,7 +322,6 @@ pub fn run(target: &dyn Target, corpus: &[Case], config: &Config) -> Summary {
     let t0 = Instant::now();
     let mut summary = Summary::default();
     pool.install(|| {
-        IN_EXECUTION.with(|f| f.set(true));
         for index in config.first..config.first.saturating_add(config.iterations) {
             let (case, mut rng) = generate(target, corpus, config.seed, index);
             if let Some(f) = &progress {
@@ -396,7 +387,6 @@ pub fn run(target: &dyn Target, corpus: &[Case], config: &Config) -> Summary {
                 }
             }
         }
-        IN_EXECUTION.with(|f| f.set(false));
     });
     *CURRENT.lock().unwrap() = None;
     summary.seconds = t0.elapsed().as_secs_f64();

@@ -28,10 +28,10 @@ fn fit_values(rng: &mut Rng, b: &mut Vec<u8>) {
     if b.len() < HEADER_BYTES {
         return;
     }
-    let count: i64 = [8, 12, 16, 20]
+    let count = [8, 12, 16, 20]
         .iter()
-        .map(|&o| i64::from(i32_at(b, o)))
-        .product();
+        .try_fold(1i64, |acc, &o| acc.checked_mul(i64::from(i32_at(b, o))))
+        .unwrap_or(-1);
     if (1..=1 << 16).contains(&count) {
         let want = HEADER_BYTES + 4 * count as usize;
         while b.len() < want {
