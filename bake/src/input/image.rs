@@ -688,7 +688,8 @@ mod tests {
                 assert!(msg.contains(&file.0.display().to_string()), "{msg}");
             }
             // Without overflow checks the B44 arithmetic wraps instead of panicking.
-            Ok(_) => assert!(!cfg!(debug_assertions), "the damaged block was decoded"),
+            Ok(_) if cfg!(debug_assertions) => panic!("the damaged block was decoded"),
+            Ok(_) => {}
         }
     }
 }

@@ -90,20 +90,17 @@ pub fn scan(path: &Path, text: &str) -> Result<Scan, MeshError> {
             defined[k] += 1;
             continue;
         }
-        match first {
-            Some("f") => {
-                let mut corners = 0u64;
-                for w in words.take_while(|w| !w.starts_with('#')) {
-                    check_index(path, n + 1, w, defined, total)?;
-                    corners += 1;
-                }
-                if corners < 3 {
-                    s.short_faces.push(n + 1);
-                } else {
-                    s.triangles += corners - 2;
-                }
+        if first == Some("f") {
+            let mut corners = 0u64;
+            for w in words.take_while(|w| !w.starts_with('#')) {
+                check_index(path, n + 1, w, defined, total)?;
+                corners += 1;
             }
-            _ => {}
+            if corners < 3 {
+                s.short_faces.push(n + 1);
+            } else {
+                s.triangles += corners - 2;
+            }
         }
     }
     Ok(s)

@@ -233,7 +233,7 @@ fn exercise(rng: &mut Rng, case: &Case, buf: &mut Buffers) -> bool {
         otbake_proxy_free(proxy);
     }
     // Status texts exist for every code, known or not.
-    let code = *rng.pick(&[0, 5, 18, OTBAKE_STATUS_COUNT as i32, -1, i32::MAX]);
+    let code = *rng.pick(&[0, 5, 18, OTBAKE_STATUS_COUNT, -1, i32::MAX]);
     assert!(!otbake_status_message(code).is_null());
     opened
 }
