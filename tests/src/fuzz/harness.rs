@@ -109,7 +109,8 @@ pub trait Target: Sync {
     fn execute(&self, rng: &mut Rng, case: &Case, scratch: &Scratch) -> bool;
 
     /// How much more memory an execution may hold live before it is a finding: by default
-    /// 256 MiB, twice the 64 MiB decoder budget the targets use plus room for the harness.
+    /// 256 MiB, four times the 64 MiB decoder budget the targets use (estimates are upper bounds,
+    /// so a decoder that keeps to its own check stays far below).
     fn memory_cap(&self) -> usize {
         256 << 20
     }

@@ -11,7 +11,7 @@ use otbake::input::{Grid, InputError};
 use otbake::limits::Budget;
 
 /// The memory budget every decoder target runs under, unless it says otherwise: small enough that
-/// hostile sizes are refused long before the harness's cap (twice this plus room), large enough
+/// hostile sizes are refused long before the harness's cap (four times this), large enough
 /// for every seed.
 pub const BUDGET: u64 = 64 << 20;
 
