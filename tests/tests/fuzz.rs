@@ -758,6 +758,7 @@ fn short_campaign_of_every_decoder_finds_nothing() {
             findings: findings.clone(),
             progress: None,
             report_every: 0,
+            memory_cap: None,
         };
         let s = fuzzer::run(target.as_ref(), &corpus, &config);
         assert!(
@@ -775,4 +776,42 @@ fn short_campaign_of_every_decoder_finds_nothing() {
             s.accepted
         );
     }
+}
+
+/// The memory cap is a finding with its input, not an abort: a campaign whose cap is below what
+/// decoding a seed needs stops at once, writes the input and exits 70.
+#[test]
+fn an_execution_past_the_memory_cap_is_a_finding_with_its_input() {
+    let dir = scratch("fuzz-cap");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_otbake-fuzz"))
+        .args([
+            "--target",
+            "image",
+            "--memory-cap",
+            "4096",
+            "--seed",
+            "3",
+            "200",
+        ])
+        .env("OTBAKE_FUZZ_FINDINGS", &dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(70), "{err}");
+    assert!(err.contains("out of memory budget"), "{err}");
+    let finding = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .next()
+        .unwrap()
+        .path();
+    let reason = std::fs::read_to_string(finding.join("reason.txt")).unwrap();
+    assert!(
+        reason.contains("past the cap of") && reason.contains("--replay"),
+        "{reason}"
+    );
+    assert!(
+        std::fs::read_dir(&finding).unwrap().count() >= 2,
+        "the input is written"
+    );
 }

@@ -1,7 +1,8 @@
 //! `otbake-fuzz`: fuzzing campaigns over the corpus in tests/fuzz/corpus/ (FUZZING.md).
 //!
 //! ```text
-//! otbake-fuzz --target NAME|all [--seed S] [--first INDEX] [--timeout-ms MS] [ITERATIONS] [SEED]
+//! otbake-fuzz --target NAME|all [--seed S] [--first INDEX] [--timeout-ms MS] [--memory-cap BYTES]
+//!             [ITERATIONS] [SEED]
 //! otbake-fuzz --target NAME --seed S --replay INDEX      # one execution, its panic not caught
 //! otbake-fuzz [ITERATIONS] [SEED]                        # the archive target (the original form)
 //! ```
@@ -9,7 +10,8 @@
 //! Targets: manifest, mesh, vol, merl, cornell, image, archive, capi. Prints, per target,
 //! executions, how many inputs were accepted all the way through, findings and the rate; findings
 //! (panics, memory past the cap, executions past the timeout — default 10 s — and crashes) are
-//! written to tests/fuzz/findings/TARGET-SEED-INDEX/ and the exit status is non-zero.
+//! written to tests/fuzz/findings/TARGET-SEED-INDEX/ (or `$OTBAKE_FUZZ_FINDINGS`) and the exit
+//! status is non-zero (70 for memory and hangs, which end the campaign).
 //!
 //! `--first INDEX` runs executions `INDEX .. INDEX + ITERATIONS`: a campaign can be run in parts
 //! (the parts of one seed add up to one campaign, execution for execution).
@@ -33,6 +35,7 @@ struct Args {
     timeout: Duration,
     replay: Option<u64>,
     first: u64,
+    memory_cap: Option<usize>,
 }
 
 fn parse() -> Result<Args, String> {
@@ -42,6 +45,7 @@ fn parse() -> Result<Args, String> {
     let mut timeout_ms = 10_000u64;
     let mut replay = None;
     let mut first = 0;
+    let mut memory_cap = None;
     let mut it = std::env::args().skip(1);
     let number = |flag: &str, v: Option<String>| -> Result<u64, String> {
         v.as_deref()
@@ -55,6 +59,7 @@ fn parse() -> Result<Args, String> {
             "--timeout-ms" => timeout_ms = number("--timeout-ms", it.next())?,
             "--replay" => replay = Some(number("--replay", it.next())?),
             "--first" => first = number("--first", it.next())?,
+            "--memory-cap" => memory_cap = Some(number("--memory-cap", it.next())? as usize),
             "-h" | "--help" => return Err(String::new()),
             _ => positional.push(a),
         }
@@ -87,6 +92,7 @@ fn parse() -> Result<Args, String> {
         timeout: Duration::from_millis(timeout_ms),
         replay,
         first,
+        memory_cap,
     })
 }
 
@@ -94,11 +100,18 @@ fn root() -> PathBuf {
     otbake_tests::repo_root().join("tests/fuzz")
 }
 
+/// Where findings go: `tests/fuzz/findings/`, or `OTBAKE_FUZZ_FINDINGS`.
+fn findings() -> PathBuf {
+    std::env::var_os("OTBAKE_FUZZ_FINDINGS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("findings"))
+}
+
 fn main() -> ExitCode {
     let args = match parse() {
         Ok(a) => a,
         Err(e) => {
-            let usage = "usage: otbake-fuzz --target NAME|all [--seed S] [--first INDEX] [--timeout-ms MS] [--replay INDEX] [ITERATIONS] [SEED]";
+            let usage = "usage: otbake-fuzz --target NAME|all [--seed S] [--first INDEX] [--timeout-ms MS] [--memory-cap BYTES] [--replay INDEX] [ITERATIONS] [SEED]";
             if e.is_empty() {
                 println!("{usage}");
                 return ExitCode::SUCCESS;
@@ -137,7 +150,7 @@ fn child(args: &Args, progress: PathBuf) -> ExitCode {
     if !fuzz::alloc::installed() {
         eprintln!("warning: the counting allocator is not installed; memory is not capped");
     }
-    let mut findings = 0;
+    let mut found = 0;
     for target in &args.targets {
         let corpus = target.seeds(&root().join("corpus"));
         let config = Config {
@@ -145,9 +158,10 @@ fn child(args: &Args, progress: PathBuf) -> ExitCode {
             iterations: args.iterations,
             seed: args.seed,
             timeout: Some(args.timeout),
-            findings: root().join("findings"),
+            findings: findings(),
             progress: Some(progress.clone()),
             report_every: 1_000_000,
+            memory_cap: args.memory_cap,
         };
         let s = fuzz::run(target.as_ref(), &corpus, &config);
         println!(
@@ -162,9 +176,9 @@ fn child(args: &Args, progress: PathBuf) -> ExitCode {
             s.seconds,
             s.executions as f64 / s.seconds.max(1e-9)
         );
-        findings += s.findings.len();
+        found += s.findings.len();
     }
-    if findings > 0 {
+    if found > 0 {
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
@@ -198,7 +212,7 @@ fn supervise() -> ExitCode {
     let corpus = target.seeds(&root().join("corpus"));
     let (case, _) = fuzz::generate(target.as_ref(), &corpus, seed, index);
     let dir = fuzz::write_finding(
-        &root().join("findings"),
+        &findings(),
         name,
         seed,
         index,

@@ -155,6 +155,8 @@ pub struct Config {
     pub progress: Option<PathBuf>,
     /// Print a progress line to stderr every this many executions (0: never).
     pub report_every: u64,
+    /// Replaces the target's [`Target::memory_cap`] (a tighter cap, or a check of the check).
+    pub memory_cap: Option<usize>,
 }
 
 /// What a campaign did.
@@ -344,7 +346,7 @@ pub fn run(target: &dyn Target, corpus: &[Case], config: &Config) -> Summary {
                 (epoch().elapsed().as_nanos() as u64).max(1),
                 Ordering::Release,
             );
-            super::alloc::arm(target.memory_cap());
+            super::alloc::arm(config.memory_cap.unwrap_or_else(|| target.memory_cap()));
             let result = catch_unwind(AssertUnwindSafe(|| {
                 target.execute(&mut rng, &case, &scratch)
             }));
