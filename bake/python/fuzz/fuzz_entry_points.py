@@ -347,6 +347,8 @@ def campaign(executions, seed, progress):
                 if findings >= 20:
                     break
             slowest = max(slowest, time.time() - t)
+            if (index + 1) % 100_000 == 0:
+                print("python: %d executions, %d findings, %.0f s" % (index + 1, findings, time.time() - t0), flush=True)
     secs = time.time() - t0
     print("python: %d executions, seed %d: %d made a blend, %d findings, slowest %.1f ms, %.1f s (%.0f per second)" % (
         index + 1, seed, made, findings, slowest * 1e3, secs, (index + 1) / max(secs, 1e-9)))
