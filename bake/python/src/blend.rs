@@ -399,10 +399,21 @@ impl Blend {
         for (a, &r) in res.iter().enumerate() {
             full[a] = r as u32;
         }
-        let cells: usize = res.iter().map(|&r| r as usize).product();
+        // Up to 65536^4 cells: the product can overflow, and the output must fit the memory the
+        // process has before it is allocated (an allocation failure would abort the interpreter).
+        let cells64 = otbake::limits::product(&res.iter().map(|&r| r as u64).collect::<Vec<_>>());
+        let with_color = color && self.parts.with(|b| Ok(b.has_color()))?;
+        let needed = otbake::limits::product(&[cells64, 4 * (1 + 3 * u64::from(with_color))]);
+        otbake::limits::Budget::for_process()
+            .check(
+                needed,
+                || format!("a splat of res {res:?}: {cells64} cells"),
+                "use a smaller res (fewer cells), or color=False",
+            )
+            .map_err(|e| argument(e.to_string()))?;
+        let cells = cells64 as usize;
         let kernel = Kernel { sigma };
         let (density, colors) = self.parts.with(|b| {
-            let with_color = color && b.has_color();
             py.detach(|| {
                 let mut density = vec![0f32; cells];
                 let mut colors = if with_color {

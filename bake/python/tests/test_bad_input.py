@@ -78,6 +78,16 @@ def test_kernel_and_indices_and_boxes_are_checked(blend):
         blend.splat(np.full((2, 3), 1 / 3, np.float32), (8, 8), 0.02)
 
 
+def test_a_splat_larger_than_memory_is_refused_not_an_abort(blend):
+    # Found by bake/python/fuzz: 65536 × 65536 cells with color asked for 51.5 GB and the
+    # allocation failure aborted the interpreter. Refused before allocating, naming res and the fix.
+    with pytest.raises(otbake.ArgumentError) as e:
+        blend.splat(W, [65536, 65536], 0.02)
+    message = str(e.value)
+    assert "res [65536, 65536]" in message and "more than the budget" in message, message
+    assert "use a smaller res" in message, message
+
+
 def test_brdf_arguments_are_checked(brdf, brdfs):
     d = np.array([[0.0, 0.0, 1.0]])
     with pytest.raises(otbake.ArgumentError, match="wi has dtype float32, it must be float64"):

@@ -143,12 +143,51 @@ fn density(channel: DensityChannel, px: &[f32; 4]) -> (f32, [f32; 3]) {
     }
 }
 
+/// Checks what the PNG decoder trusts without checking: a `PLTE` chunk must hold whole RGB
+/// entries, at most 256 (the png crate indexes past a palette of 3k + 1 or 3k + 2 bytes and
+/// panics). Reads only the chunk headers; a file that is not a PNG is left to the decoder.
+fn check_png_chunks(path: &Path) -> Result<(), InputError> {
+    use std::io::{Read, Seek, SeekFrom};
+    let io = |source| InputError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let mut magic = [0u8; 8];
+    if file.read_exact(&mut magic).is_err() || magic != *b"\x89PNG\r\n\x1a\n" {
+        return Ok(());
+    }
+    let mut offset = 8u64;
+    let mut head = [0u8; 8];
+    while file.read_exact(&mut head).is_ok() {
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]);
+        match &head[4..8] {
+            b"PLTE" if len == 0 || len % 3 != 0 || len > 3 * 256 => {
+                return Err(InputError::Decode {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "its PLTE chunk at byte offset {offset} holds {len} bytes, not a whole number of RGB entries (3 bytes each, 1 to 256 of them): the palette is damaged"
+                    ),
+                })
+            }
+            b"IEND" | b"IDAT" => return Ok(()),
+            _ => {}
+        }
+        offset += 12 + u64::from(len);
+        file.seek(SeekFrom::Start(offset)).map_err(io)?;
+    }
+    Ok(())
+}
+
 fn decode_srgb(
     path: &Path,
     format: image::ImageFormat,
     budget: &Budget,
 ) -> Result<LinearPixels, InputError> {
     use image::ImageDecoder;
+    if format == image::ImageFormat::Png {
+        check_png_chunks(path)?;
+    }
     let decode_err = |e: image::ImageError| InputError::Decode {
         path: path.to_path_buf(),
         message: e.to_string(),
@@ -225,30 +264,53 @@ fn decode_exr(path: &Path, budget: &Budget) -> Result<LinearPixels, InputError> 
             check_pixels(path, size.width() as u64, size.height() as u64, 0, budget)?;
         }
     }
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |resolution: Vec2<usize>, _channels: &RgbaChannels| {
-            (
-                resolution.width(),
-                vec![[0f32; 4]; resolution.width() * resolution.height()],
+    // Decompressed on this thread (`non_parallel`) and inside `catch_unwind`: the exr crate's
+    // codecs can panic on damaged data (B44 on a block that is not, found by fuzzing), and a panic
+    // in its parallel decompressor's rayon tasks aborts the process; here it becomes an error.
+    let read = || {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |resolution: Vec2<usize>, _channels: &RgbaChannels| {
+                    (
+                        resolution.width(),
+                        vec![[0f32; 4]; resolution.width() * resolution.height()],
+                    )
+                },
+                |pixels: &mut (usize, Vec<[f32; 4]>),
+                 pos: Vec2<usize>,
+                 (r, g, b, a): (f32, f32, f32, f32)| {
+                    pixels.1[pos.y() * pixels.0 + pos.x()] = [r, g, b, a];
+                },
             )
-        },
-        |pixels: &mut (usize, Vec<[f32; 4]>),
-         pos: Vec2<usize>,
-         (r, g, b, a): (f32, f32, f32, f32)| {
-            pixels.1[pos.y() * pixels.0 + pos.x()] = [r, g, b, a];
-        },
-    )
-    .map_err(|e| match e {
-        exr::error::Error::Io(source) => InputError::Io {
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_file(path)
+    };
+    let image = std::panic::catch_unwind(read)
+        .map_err(|panic| InputError::Exr {
             path: path.to_path_buf(),
-            source,
-        },
-        other => InputError::Exr {
-            path: path.to_path_buf(),
-            message: other.to_string(),
-        },
-    })?;
+            message: format!(
+                "the OpenEXR decoder failed on damaged data ({})",
+                panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "no message".into())
+            ),
+        })?
+        .map_err(|e| match e {
+            exr::error::Error::Io(source) => InputError::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+            other => InputError::Exr {
+                path: path.to_path_buf(),
+                message: other.to_string(),
+            },
+        })?;
     let size = image.layer_data.size;
     let (width, height) = (size.width(), size.height());
     if width == 0 || height == 0 {
@@ -554,5 +616,80 @@ mod tests {
         // JPEG is lossy; a flat block stays within a couple of codes.
         let want = srgb_to_linear(128.0 / 255.0);
         assert!(g.mass.iter().all(|&m| close(m, want, 0.01)));
+    }
+
+    /// A PNG chunk: length, type, data, CRC-32.
+    fn chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+        let crc = !kind.iter().chain(data).fold(!0u32, |mut c, &b| {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+            c
+        });
+        let mut out = (data.len() as u32).to_be_bytes().to_vec();
+        out.extend_from_slice(kind);
+        out.extend_from_slice(data);
+        out.extend_from_slice(&crc.to_be_bytes());
+        out
+    }
+
+    /// Found by the fuzzer (`image` target): a palette of 3k + 2 bytes made the png crate index
+    /// past it and panic. It is refused, naming the chunk and its offset.
+    #[test]
+    fn a_palette_of_partial_entries_is_refused_not_a_panic() {
+        // A 1×1 palette image: IHDR, PLTE, one stored-zlib IDAT row (filter 0, index 0), IEND.
+        let png = |palette: &[u8]| {
+            let mut b = b"\x89PNG\r\n\x1a\n".to_vec();
+            b.extend(chunk(b"IHDR", &[0, 0, 0, 1, 0, 0, 0, 1, 8, 3, 0, 0, 0]));
+            b.extend(chunk(b"PLTE", palette));
+            let idat = [
+                0x78, 0x01, 0x01, 0x02, 0x00, 0xFD, 0xFF, 0, 0, 0x00, 0x02, 0x00, 0x01,
+            ];
+            b.extend(chunk(b"IDAT", &idat));
+            b.extend(chunk(b"IEND", &[]));
+            b
+        };
+        let good = TempFile::new("palette-good", "png");
+        std::fs::write(&good.0, png(&[255, 255, 255, 0, 0, 0])).unwrap();
+        let g = load_image(&good.0, DensityChannel::Luminance).unwrap();
+        assert_eq!(g.mass, vec![1.0]);
+        for bad in [&[255u8, 255, 255, 0, 0][..], &[][..], &[7u8; 771][..]] {
+            let file = TempFile::new("palette-bad", "png");
+            std::fs::write(&file.0, png(bad)).unwrap();
+            let e = load_image(&file.0, DensityChannel::Luminance).unwrap_err();
+            let msg = e.to_string();
+            assert!(
+                msg.contains(&file.0.display().to_string())
+                    && msg.contains("PLTE chunk at byte offset 33")
+                    && msg.contains(&format!("holds {} bytes", bad.len())),
+                "{msg}"
+            );
+        }
+    }
+
+    /// Found by the fuzzer (`image` target, overflow checks on): a ZIP EXR relabelled B44 (3 bytes
+    /// changed) made the exr crate's B44 decoder overflow inside its parallel decompressor's rayon
+    /// task, and a panic there aborts the process. Decoded on the calling thread under
+    /// `catch_unwind`, it is an error naming the file.
+    #[test]
+    fn a_damaged_exr_block_is_an_error_not_an_abort() {
+        let fixture = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../tests/fuzz/corpus/image/finding-b44-overflow.exr");
+        let file = TempFile::new("b44", "exr");
+        std::fs::copy(&fixture, &file.0).unwrap();
+        match load_image(&file.0, DensityChannel::Luminance) {
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains(&file.0.display().to_string()), "{msg}");
+            }
+            // Without overflow checks the B44 arithmetic wraps instead of panicking.
+            Ok(_) if cfg!(debug_assertions) => panic!("the damaged block was decoded"),
+            Ok(_) => {}
+        }
     }
 }

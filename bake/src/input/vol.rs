@@ -175,12 +175,24 @@ impl VolFile {
             ));
         }
         let channels = channels as usize;
-        let values = dims.iter().map(|&d| d as u64).product::<u64>() * channels as u64;
+        // Saturating: three int32 sizes and a channel count overflow u64 (2^124), and a wrapped
+        // product could match a short file.
+        let values = product(&[
+            dims[0] as u64,
+            dims[1] as u64,
+            dims[2] as u64,
+            channels as u64,
+        ]);
         if values > MAX_CELLS {
+            let total = if values == u64::MAX {
+                "at least 2^64".to_string()
+            } else {
+                values.to_string()
+            };
             return Err(err(
                 8,
                 format!(
-                    "{}×{}×{} cells × {channels} channels = {values} values is more than the {MAX_CELLS} supported: downsample the grid",
+                    "{}×{}×{} cells × {channels} channels = {total} values is more than the {MAX_CELLS} supported: downsample the grid",
                     dims[0], dims[1], dims[2]
                 ),
             ));
@@ -489,6 +501,25 @@ mod tests {
         assert_eq!(o, 20);
         let (o, m) = format_error(&patch(8, &i32::MAX.to_le_bytes()));
         assert!(o == 8 && m.contains("downsample"), "{m}");
+        // Found by the fuzzer (`vol` target, overflow checks on): sizes whose product overflows
+        // u64 panicked; wrapped, 2^30 × 2^30 × 16 cells made 0 values and a 48-byte file parsed.
+        let mut huge = good[..HEADER_BYTES].to_vec();
+        for (at, v) in [(8, 1i32 << 30), (12, 1 << 30), (16, 16)] {
+            huge[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        let (o, m) = format_error(&huge);
+        assert!(
+            o == 8 && m.contains("at least 2^64") && m.contains("downsample"),
+            "{m}"
+        );
+        for v in [i32::MAX; 3] {
+            huge[12..16].copy_from_slice(&v.to_le_bytes());
+        }
+        huge[8..12].copy_from_slice(&i32::MAX.to_le_bytes());
+        huge[16..20].copy_from_slice(&i32::MAX.to_le_bytes());
+        huge[20..24].copy_from_slice(&i32::MAX.to_le_bytes());
+        let (o, m) = format_error(&huge);
+        assert!(o == 8 && m.contains("at least 2^64"), "{m}");
         // Truncated data: the offset is where the file ends.
         let (o, m) = format_error(&good[..good.len() - 4]);
         assert!(o == good.len() - 4 && m.contains("truncated"), "{m}");

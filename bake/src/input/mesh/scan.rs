@@ -16,69 +16,91 @@ pub struct Scan {
     pub short_faces: Vec<usize>,
 }
 
-/// The position index of one `f` line vertex (`v`, `v/vt`, `v//vn` or `v/vt/vn`): `Ok(None)` when
-/// it is not a number (tobj reports that), an error when it points at no vertex. OBJ indices are
-/// 1-based; negative ones count back from the last vertex defined so far.
+/// Elements a face index can refer to: positions (`v`), texture coordinates (`vt`), normals (`vn`).
+const KINDS: [(&str, &str, &str); 3] = [
+    ("v", "vertex", "vertices"),
+    ("vt", "texture coordinate", "texture coordinates"),
+    ("vn", "normal", "normals"),
+];
+
+/// Checks the indices of one `f` line vertex (`v`, `v/vt`, `v//vn` or `v/vt/vn`) against the
+/// elements of each kind: an error when one points at no element (tobj computes an element's
+/// offset by a multiplication that overflows for a huge index, and reads a wrong element or
+/// panics). Texture-coordinate and normal indices of a file with none are ignored, as tobj ignores
+/// them. A part that is not a number is left to tobj to report. OBJ indices are 1-based; negative ones count back from the
+/// last element defined so far.
 fn check_index(
     path: &Path,
     line: usize,
     word: &str,
-    defined: u64,
-    total: u64,
+    defined: [u64; 3],
+    total: [u64; 3],
 ) -> Result<(), MeshError> {
-    let Ok(i) = word.split('/').next().unwrap_or("").parse::<i64>() else {
-        return Ok(());
-    };
-    let ok = match i {
-        0 => false,
-        i if i > 0 => i as u64 <= total,
-        i => i.unsigned_abs() <= defined,
-    };
-    if ok {
-        return Ok(());
+    for (k, part) in word.split('/').take(3).enumerate() {
+        let Ok(i) = part.parse::<i64>() else {
+            continue;
+        };
+        if k > 0 && total[k] == 0 {
+            continue;
+        }
+        let ok = match i {
+            0 => false,
+            i if i > 0 => i as u64 <= total[k],
+            i => i.unsigned_abs() <= defined[k],
+        };
+        if ok {
+            continue;
+        }
+        let (keyword, one, many) = KINDS[k];
+        let count = if i < 0 { defined[k] } else { total[k] };
+        let exist = match count {
+            0 => format!("no {one} is defined before it"),
+            v => format!("only {v} {many} exist (1 to {v}, or -1 to -{v} counting back)"),
+        };
+        return Err(MeshError::Parse {
+            path: path.to_path_buf(),
+            reason: format!(
+                "line {line}: a face refers to {one} index {i}, but {exist}; OBJ indices count from \
+                 1, negative ones back from the last `{keyword}` line so far: fix the face or add the \
+                 missing {many}"
+            ),
+        });
     }
-    let vertices = if i < 0 { defined } else { total };
-    let exist = match vertices {
-        0 => "no vertex is defined before it".to_string(),
-        v => format!("only {v} vertices exist (1 to {v}, or -1 to -{v} counting back)"),
-    };
-    Err(MeshError::Parse {
-        path: path.to_path_buf(),
-        reason: format!(
-            "line {line}: a face refers to vertex index {i}, but {exist}; OBJ indices count from 1, \
-             negative ones back from the last `v` line so far: fix the face or add the missing vertices"
-        ),
-    })
+    Ok(())
 }
 
 /// Scans OBJ text: see the module docs.
 pub fn scan(path: &Path, text: &str) -> Result<Scan, MeshError> {
-    let total = text
-        .lines()
-        .filter(|l| l.split_whitespace().next() == Some("v"))
-        .count() as u64;
+    let kind = |word: Option<&str>| KINDS.iter().position(|k| Some(k.0) == word);
+    let mut total = [0u64; 3];
+    for line in text.lines() {
+        if let Some(k) = kind(line.split_whitespace().next()) {
+            total[k] += 1;
+        }
+    }
     let mut s = Scan {
-        vertices: total,
+        vertices: total[0],
         ..Scan::default()
     };
-    let mut defined = 0u64;
+    let mut defined = [0u64; 3];
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
-        match words.next() {
-            Some("v") => defined += 1,
-            Some("f") => {
-                let mut corners = 0u64;
-                for w in words.take_while(|w| !w.starts_with('#')) {
-                    check_index(path, n + 1, w, defined, total)?;
-                    corners += 1;
-                }
-                if corners < 3 {
-                    s.short_faces.push(n + 1);
-                } else {
-                    s.triangles += corners - 2;
-                }
+        let first = words.next();
+        if let Some(k) = kind(first) {
+            defined[k] += 1;
+            continue;
+        }
+        if first == Some("f") {
+            let mut corners = 0u64;
+            for w in words.take_while(|w| !w.starts_with('#')) {
+                check_index(path, n + 1, w, defined, total)?;
+                corners += 1;
             }
-            _ => {}
+            if corners < 3 {
+                s.short_faces.push(n + 1);
+            } else {
+                s.triangles += corners - 2;
+            }
         }
     }
     Ok(s)
@@ -124,5 +146,43 @@ mod tests {
             assert!(e.contains(&format!("index {index}")), "{e}");
             assert!(e.contains("3 vertices"), "{e}");
         }
+    }
+
+    /// Found by the fuzzer (`mesh` target, a dev build): a normal index of 2^63 − 1 made tobj's
+    /// offset computation overflow (a panic with overflow checks, a wrong normal without). Texture
+    /// coordinate and normal indices are checked like vertex indices when the file has any.
+    #[test]
+    fn texture_and_normal_indices_are_checked_when_the_file_has_them() {
+        let head = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0 1 0\n";
+        for (face, what) in [
+            (
+                "f 1//1 2//1 3//9223372036854775807",
+                "normal index 9223372036854775807, but only 2 normals",
+            ),
+            (
+                "f 1/2 2/1 3/1",
+                "texture coordinate index 2, but only 1 texture coordinates",
+            ),
+            (
+                "f 1/1/-3 2/1/1 3/1/1",
+                "normal index -3, but only 2 normals",
+            ),
+        ] {
+            let e = scan(Path::new("m.obj"), &format!("{head}{face}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("line 7:") && e.contains(what), "{e}");
+        }
+        assert!(scan(
+            Path::new("m.obj"),
+            &format!("{head}f 1/1/2 2/1/1 -1/1/-2\n")
+        )
+        .is_ok());
+        // Without normals, normal indices mean nothing (tobj ignores them too).
+        assert!(scan(
+            Path::new("m.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//7 2//7 3//7\n"
+        )
+        .is_ok());
     }
 }

@@ -114,12 +114,18 @@ fn union(a: ([f64; 3], [f64; 3]), b: ([f64; 3], [f64; 3])) -> ([f64; 3], [f64; 3
     )
 }
 
-/// The placement of `mesh` (read from `path`) under `options`.
-pub fn placement(path: &Path, mesh: &Mesh, options: &MeshOptions) -> Result<Placement, MeshError> {
+/// The placement of `mesh` (read from `path`) under `options`; the other meshes of a common fit
+/// are read one at a time within `budget`.
+pub fn placement(
+    path: &Path,
+    mesh: &Mesh,
+    options: &MeshOptions,
+    budget: &Budget,
+) -> Result<Placement, MeshError> {
     let mut bounds = mesh.bounds();
     if let Fit::Common(paths) = &options.fit {
         for other in paths.iter().filter(|p| p.as_path() != path) {
-            bounds = union(bounds, Mesh::read(other)?.bounds());
+            bounds = union(bounds, Mesh::read_within(other, budget, 0)?.bounds());
         }
     }
     Ok(Placement::fit(bounds.0, bounds.1, options.margin))
@@ -166,7 +172,7 @@ pub fn load_within(
 ) -> Result<Grid, InputError> {
     let r = options.resolution as u64;
     let mesh = Mesh::read_within(path, budget, product(&[r, r, r, 4 + 8]))?;
-    let place = placement(path, &mesh, options)?;
+    let place = placement(path, &mesh, options, budget)?;
     let res = options.resolution;
     let mass = voxelize(&mesh, &place, res);
     if mass.iter().all(|&m| m == 0.0) {
@@ -237,5 +243,31 @@ mod tests {
             .unwrap()
             .install(|| voxelize(&ball, &place, 24));
         assert_eq!(a, b);
+    }
+
+    /// A common fit reads the other meshes within the caller's budget, not the process's.
+    #[test]
+    fn a_common_fit_reads_the_other_meshes_within_the_budget() {
+        let dir = std::env::temp_dir().join(format!("otbake-common-fit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let small = dir.join("small.obj");
+        let big = dir.join("big.obj");
+        std::fs::write(&small, cuboid([0.0; 3], [1.0; 3]).to_obj()).unwrap();
+        let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+        text.push_str(&"f 1 2 3\n".repeat(20_000));
+        std::fs::write(&big, text).unwrap();
+        let options = MeshOptions {
+            resolution: 8,
+            margin: 0.05,
+            fit: Fit::Common(vec![small.clone(), big.clone()]),
+        };
+        let e = load_within(&small, &options, &Budget::command_line(1 << 20)).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("big.obj") && msg.contains("20000 triangles") && msg.contains("budget"),
+            "{msg}"
+        );
+        assert!(load_within(&small, &options, &Budget::command_line(1 << 30)).is_ok());
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -1,55 +1,15 @@
-//! A structure-aware fuzzer for the runtime: mutates real archives (bit flips, special floats,
-//! truncation, splices — usually repairing the checksum so the damage reaches validation and the
-//! queries), opens them, and runs every query with random and hostile arguments. Any panic is a
-//! finding. Deterministic for a seed, so findings replay.
-//!
-//! `cargo nextest`/`cargo fuzz` need nightly for coverage guidance; this runs on stable everywhere,
-//! including CI, which replays the corpus and runs a short campaign on every change.
+//! The `archive` target: mutates real archives (bit flips, special floats, truncation, splices —
+//! usually repairing the checksum so the damage reaches validation and the queries), opens them
+//! with the runtime's `Proxy::open`/`Map::open`, and runs every query with random and hostile
+//! arguments.
 
+use super::Rng;
 use otbake_formats::header::{Header, HEADER_LEN};
 use otbake_formats::write::aligned_copy;
 use otbake_formats::ArchiveKind;
 use otbake_runtime::{
     AdaptiveKernel, Blend, Kernel, Map, PointValue, PreparedBuffers, Proxy, Region, SplatTarget,
 };
-
-/// SplitMix64: tiny, seedable, good enough for choosing mutations.
-pub struct Rng(pub u64);
-
-impl Rng {
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform integer below `n` (n > 0).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n.max(1) as u64) as usize
-    }
-    /// A float that is sometimes ordinary and sometimes hostile.
-    pub fn float(&mut self) -> f32 {
-        const SPECIAL: [f32; 10] = [
-            0.0,
-            -0.0,
-            1.0,
-            -1.0,
-            f32::NAN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::MAX,
-            f32::MIN_POSITIVE,
-            1e-45,
-        ];
-        if self.below(4) == 0 {
-            SPECIAL[self.below(SPECIAL.len())]
-        } else {
-            (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32 * 1.2 - 0.1
-        }
-    }
-}
 
 /// Mutates archive bytes of `kind` in place.
 pub fn mutate(rng: &mut Rng, bytes: &mut Vec<u8>, kind: ArchiveKind) {
@@ -236,4 +196,51 @@ pub fn exercise(rng: &mut Rng, proxy: &[u8], maps: &[&[u8]]) -> usize {
         let _ = prep.splat_region_rgba(kernel, Region::full(res), &mut rgba);
     }
     opened
+}
+
+/// The `archive` target: a proxy and its maps (`corpus/archive/CASE/`), one of them mutated, then
+/// opened and queried by [`exercise`]. Accepted: every archive still opened.
+pub struct ArchiveTarget;
+
+impl super::Target for ArchiveTarget {
+    fn name(&self) -> &'static str {
+        "archive"
+    }
+
+    fn seeds(&self, corpus: &std::path::Path) -> Vec<super::Case> {
+        archive_cases(&corpus.join("archive"))
+    }
+
+    fn mutate(&self, rng: &mut Rng, case: &mut super::Case, _other: &super::Case) {
+        // File 0 is the proxy; a map two times in three.
+        let (i, kind) = if case.files.len() == 1 || rng.one_in(3) {
+            (0, ArchiveKind::Proxy)
+        } else {
+            (1 + rng.below(case.files.len() - 1), ArchiveKind::Map)
+        };
+        mutate(rng, &mut case.files[i].1, kind);
+    }
+
+    fn execute(&self, rng: &mut Rng, case: &super::Case, _scratch: &super::Scratch) -> bool {
+        let maps: Vec<&[u8]> = case.files[1..].iter().map(|f| f.1.as_slice()).collect();
+        exercise(rng, &case.files[0].1, &maps) == 2
+    }
+}
+
+/// Archive cases: every sub-directory of `dir` holding `proxy.otb` and `*.otb` maps, the proxy
+/// first.
+pub fn archive_cases(dir: &std::path::Path) -> Vec<super::Case> {
+    crate::fuzz_corpus(dir)
+        .into_iter()
+        .map(|c| {
+            let mut files = vec![("proxy.otb".to_string(), c.proxy)];
+            files.extend(
+                c.maps
+                    .into_iter()
+                    .enumerate()
+                    .map(|(i, m)| (format!("map{i}.otb"), m)),
+            );
+            super::Case { files }
+        })
+        .collect()
 }
