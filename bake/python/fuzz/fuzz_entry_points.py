@@ -25,6 +25,7 @@ alone with its exception's traceback.
 import os
 import random
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -349,6 +350,7 @@ def campaign(executions, seed, progress):
             slowest = max(slowest, time.time() - t)
             if (index + 1) % 100_000 == 0:
                 print("python: %d executions, %d findings, %.0f s" % (index + 1, findings, time.time() - t0), flush=True)
+    shutil.rmtree(ctx.scratch, ignore_errors=True)
     secs = time.time() - t0
     print("python: %d executions, seed %d: %d made a blend, %d findings, slowest %.1f ms, %.1f s (%.0f per second)" % (
         index + 1, seed, made, findings, slowest * 1e3, secs, (index + 1) / max(secs, 1e-9)))
@@ -360,7 +362,10 @@ def main(argv):
         index, seed = int(argv[1]), int(argv[2])
         ctx = Context(load_cases(), load_manifests(), tempfile.mkdtemp(prefix="otbake-pyfuzz-"))
         rnd, nrng = generators(seed, index)
-        print("execution %d of seed %d: made a blend: %s" % (index, seed, execute(rnd, nrng, ctx)))
+        try:
+            print("execution %d of seed %d: made a blend: %s" % (index, seed, execute(rnd, nrng, ctx)))
+        finally:
+            shutil.rmtree(ctx.scratch, ignore_errors=True)
         return 0
     if argv[:1] == ["--child"]:
         return campaign(int(argv[1]), int(argv[2]), argv[3])

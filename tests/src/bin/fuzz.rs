@@ -191,11 +191,16 @@ fn supervise() -> ExitCode {
     use std::os::unix::process::ExitStatusExt;
     let progress =
         std::env::temp_dir().join(format!("otbake-fuzz-progress-{}", std::process::id()));
-    let status = std::process::Command::new(std::env::current_exe().expect("own path"))
+    let mut child = std::process::Command::new(std::env::current_exe().expect("own path"))
         .args(std::env::args_os().skip(1))
         .env("OTBAKE_FUZZ_CHILD", &progress)
-        .status()
+        .spawn()
         .expect("run the fuzz campaign");
+    let status = child.wait().expect("wait for the fuzz campaign");
+    // A child that crashed or hit the cap left its scratch files.
+    for t in fuzz::targets() {
+        let _ = std::fs::remove_dir_all(fuzz::Scratch::path_for(child.id(), t.name()));
+    }
     let record = std::fs::read_to_string(&progress).unwrap_or_default();
     let _ = std::fs::remove_file(&progress);
     if let Some(code) = status.code() {

@@ -55,16 +55,21 @@ pub struct Scratch {
 impl Scratch {
     /// A fresh directory for this process and `target`.
     pub fn new(target: &str) -> Self {
+        let dir = Self::path_for(std::process::id(), target);
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("create the fuzz scratch directory");
+        Scratch { dir }
+    }
+
+    /// The directory process `pid` uses for `target` (a supervisor removes a crashed child's).
+    pub fn path_for(pid: u32, target: &str) -> PathBuf {
         let base = Path::new("/dev/shm");
         let base = if base.is_dir() {
             base.to_path_buf()
         } else {
             std::env::temp_dir()
         };
-        let dir = base.join(format!("otbake-fuzz-{}-{target}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("create the fuzz scratch directory");
-        Scratch { dir }
+        base.join(format!("otbake-fuzz-{pid}-{target}"))
     }
 
     /// Writes `bytes` as `name` in the scratch directory and returns its path.
