@@ -1,6 +1,6 @@
 """Fuzzes the Python entry points of the `otbake` package with hostile arguments.
 
-    python bake/python/fuzz/fuzz_entry_points.py [EXECUTIONS] [SEED]
+    python bake/python/fuzz/fuzz_entry_points.py [--first INDEX] [EXECUTIONS] [SEED]
     python bake/python/fuzz/fuzz_entry_points.py --replay INDEX SEED
 
 Each execution opens archives of the fuzz corpus (tests/fuzz/corpus/archive/, sometimes with
@@ -19,7 +19,9 @@ any other exception, or a crash of the process (the campaign runs in a child pro
 Findings go to tests/fuzz/findings/python-SEED-INDEX/ and the exit status is 1.
 
 Every execution draws from its own generator, seeded by (SEED, INDEX), so `--replay` reruns one
-alone with its exception's traceback.
+alone with its exception's traceback, and `--first INDEX` runs executions INDEX .. INDEX +
+EXECUTIONS: a campaign in parts (run side by side on several cores) that add up, execution for
+execution, to one campaign.
 """
 
 import os
@@ -322,7 +324,7 @@ def write_finding(seed, index, reason):
     return d
 
 
-def campaign(executions, seed, progress):
+def campaign(first, executions, seed, progress):
     # numpy's casting warnings (e.g. complex to float in `shade`) are not findings.
     warnings.simplefilter("ignore")
     resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE, ADDRESS_SPACE))
@@ -331,7 +333,8 @@ def campaign(executions, seed, progress):
     slowest = 0.0
     t0 = time.time()
     with open(progress, "r+b") as prog:
-        for index in range(executions):
+        index = first - 1
+        for index in range(first, first + executions):
             prog.seek(0)
             prog.write(b"%020d" % index)
             prog.flush()
@@ -348,12 +351,13 @@ def campaign(executions, seed, progress):
                 if findings >= 20:
                     break
             slowest = max(slowest, time.time() - t)
-            if (index + 1) % 100_000 == 0:
-                print("python: %d executions, %d findings, %.0f s" % (index + 1, findings, time.time() - t0), flush=True)
+            if (index + 1 - first) % 100_000 == 0:
+                print("python: %d executions, %d findings, %.0f s" % (index + 1 - first, findings, time.time() - t0), flush=True)
     shutil.rmtree(ctx.scratch, ignore_errors=True)
     secs = time.time() - t0
-    print("python: %d executions, seed %d: %d made a blend, %d findings, slowest %.1f ms, %.1f s (%.0f per second)" % (
-        index + 1, seed, made, findings, slowest * 1e3, secs, (index + 1) / max(secs, 1e-9)))
+    ran = index + 1 - first
+    print("python: %d executions (from %d), seed %d: %d made a blend, %d findings, slowest %.1f ms, %.1f s (%.0f per second)" % (
+        ran, first, seed, made, findings, slowest * 1e3, secs, ran / max(secs, 1e-9)))
     return 1 if findings else 0
 
 
@@ -368,13 +372,16 @@ def main(argv):
             shutil.rmtree(ctx.scratch, ignore_errors=True)
         return 0
     if argv[:1] == ["--child"]:
-        return campaign(int(argv[1]), int(argv[2]), argv[3])
+        return campaign(int(argv[1]), int(argv[2]), int(argv[3]), argv[4])
+    first = 0
+    if argv[:1] == ["--first"]:
+        first, argv = int(argv[1]), argv[2:]
     executions = int(argv[0]) if argv else 100_000
     seed = int(argv[1]) if len(argv) > 1 else 1
     fd, progress = tempfile.mkstemp(prefix="otbake-pyfuzz-progress-")
-    os.write(fd, b"%020d" % 0)
+    os.write(fd, b"%020d" % first)
     os.close(fd)
-    r = subprocess.run([sys.executable, __file__, "--child", str(executions), str(seed), progress])
+    r = subprocess.run([sys.executable, __file__, "--child", str(first), str(executions), str(seed), progress])
     with open(progress, "rb") as f:
         index = int(f.read(20) or b"0")
     os.remove(progress)

@@ -7,7 +7,9 @@
 //! otbake-fuzz [ITERATIONS] [SEED]                        # the archive target (the original form)
 //! ```
 //!
-//! Targets: manifest, mesh, vol, merl, cornell, image, archive, capi. Prints, per target,
+//! Targets: manifest, mesh, vol, merl, cornell, image, archive, capi (and the harness's own
+//! checks, `selftest-panic`, `selftest-hang`, `selftest-abort`, `selftest-memory`, which fail on
+//! purpose and are not part of `all`). Prints, per target,
 //! executions, how many inputs were accepted all the way through, findings and the rate; findings
 //! (panics, memory past the cap, executions past the timeout — default 10 s — and crashes) are
 //! written to tests/fuzz/findings/TARGET-SEED-INDEX/ (or `$OTBAKE_FUZZ_FINDINGS`) and the exit
@@ -125,7 +127,7 @@ fn main() -> ExitCode {
     }
     match std::env::var_os("OTBAKE_FUZZ_CHILD") {
         Some(progress) => child(&args, PathBuf::from(progress)),
-        None => supervise(),
+        None => supervise(&args),
     }
 }
 
@@ -187,7 +189,7 @@ fn child(args: &Args, progress: PathBuf) -> ExitCode {
 
 /// Runs the campaign in a child process; if a crash kills it, writes the input of the execution
 /// it last recorded as a finding.
-fn supervise() -> ExitCode {
+fn supervise(args: &Args) -> ExitCode {
     use std::os::unix::process::ExitStatusExt;
     let progress =
         std::env::temp_dir().join(format!("otbake-fuzz-progress-{}", std::process::id()));
@@ -198,7 +200,7 @@ fn supervise() -> ExitCode {
         .expect("run the fuzz campaign");
     let status = child.wait().expect("wait for the fuzz campaign");
     // A child that crashed or hit the cap left its scratch files.
-    for t in fuzz::targets() {
+    for t in &args.targets {
         let _ = std::fs::remove_dir_all(fuzz::Scratch::path_for(child.id(), t.name()));
     }
     let record = std::fs::read_to_string(&progress).unwrap_or_default();

@@ -32,7 +32,14 @@ pub fn targets() -> Vec<Box<dyn Target>> {
     ]
 }
 
-/// The target called `name`.
+/// The target called `name`: one of [`targets`], or a self-test of the harness
+/// ([`targets::selftest`], never part of `all`).
 pub fn target(name: &str) -> Option<Box<dyn Target>> {
-    targets().into_iter().find(|t| t.name() == name)
+    let selftests = targets::selftest::all()
+        .into_iter()
+        .map(|t| Box::new(t) as Box<dyn Target>);
+    targets()
+        .into_iter()
+        .chain(selftests)
+        .find(|t| t.name() == name)
 }

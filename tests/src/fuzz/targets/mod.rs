@@ -5,6 +5,7 @@ pub mod capi;
 pub mod image;
 pub mod manifest;
 pub mod mesh;
+pub mod selftest;
 pub mod vol;
 
 use otbake::input::{Grid, InputError};
