@@ -14,6 +14,7 @@
 
 use crate::input::{self, DensityChannel, InputError, InputKind};
 use crate::manifest::Manifest;
+use crate::pipeline::warnings::opaque_alpha;
 use crate::render::{Archives, RenderError};
 use crate::sample::{importance_sample, SampleError};
 use crate::solve::barycenter::{coordinates, BarycenterError};
@@ -49,6 +50,8 @@ pub struct Fitted {
     pub scale: f64,
     /// `residual / scale`.
     pub relative_residual: f64,
+    /// What looks wrong with the target (as the bake's input warnings say it).
+    pub warnings: Vec<String>,
 }
 
 /// Why a target could not be fitted.
@@ -139,6 +142,11 @@ pub fn fit(m: &Manifest, archives: &Archives, target: &FitTarget<'_>) -> Result<
     };
     let grid = input::load_with(target.path, density, &first.options)
         .map_err(|source| FitError::Input { path, source })?;
+    let setting = match target.density {
+        Some(_) => "`--density alpha`",
+        None => "the inputs' `density = \"alpha\"`",
+    };
+    let warnings = opaque_alpha(density, &grid, setting).into_iter().collect();
     let maps = archives.maps()?;
     let blend = Blend::new(archives.proxy()?, &maps)?;
     let (dim, n, k) = (blend.dim(), blend.n(), blend.k());
@@ -174,5 +182,6 @@ pub fn fit(m: &Manifest, archives: &Archives, target: &FitTarget<'_>) -> Result<
         weights: c.weights,
         residual: c.residual,
         scale: c.scale,
+        warnings,
     })
 }

@@ -136,3 +136,36 @@ fn targets_of_another_dimension_or_wrap_are_errors() {
     );
     assert!(e.contains("missing.png"), "{e}");
 }
+
+/// `fit --density alpha` on a target without transparency warns (stderr and the JSON) that its
+/// density is uniform; the fit still runs, and the default density says nothing.
+#[test]
+fn an_alpha_density_on_an_opaque_target_is_a_warning() {
+    let (dir, m) = setup("fit-opaque-alpha");
+    let target = shared_data().join("shapes/duck.png");
+    let json = dir.join("w.json");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            m.to_str().unwrap(),
+            "--target",
+            target.to_str().unwrap(),
+            "-o",
+            json.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = otbake_ok(&dir, &args);
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (String::from_utf8_lossy(&out.stderr).into_owned(), v)
+    };
+    let (err, v) = run(&["--density", "alpha"]);
+    assert!(
+        err.contains("warning: target ")
+            && err.contains("`--density alpha`, but every pixel has the same alpha"),
+        "{err}"
+    );
+    assert_eq!(v["warnings"].as_array().unwrap().len(), 1, "{v}");
+    let (err, v) = run(&[]);
+    assert!(!err.contains("warning:"), "{err}");
+    assert_eq!(v["warnings"], serde_json::json!([]));
+}

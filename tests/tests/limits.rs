@@ -202,6 +202,40 @@ fn grids_are_checked_on_their_whole_image_and_blend_count() {
     assert!(outputs(&dir).is_empty(), "{:?}", outputs(&dir));
 }
 
+/// `fit --render` checks its image's size before it bakes or fits anything.
+#[test]
+fn a_fit_render_larger_than_the_budget_is_refused_before_the_bake() {
+    let dir = scratch("limits-fit-render");
+    two_shapes(&dir, "");
+    let target = shared_data().join("shapes/duck.png");
+    let target = target.to_str().unwrap();
+    for ulimit in [false, true] {
+        let budget: &[&str] = if ulimit { &[] } else { &["--memory", "1GiB"] };
+        let mut args = budget.to_vec();
+        args.extend([
+            "fit",
+            "two.toml",
+            "--target",
+            target,
+            "--render",
+            "fit.png",
+            "--size",
+            "16384x16384",
+        ]);
+        refused(
+            &dir,
+            &args,
+            ulimit,
+            &[
+                "fit --render: a 16384x16384 image",
+                "lower --size",
+                "--memory SIZE",
+            ],
+        );
+    }
+    assert!(outputs(&dir).is_empty(), "{:?}", outputs(&dir));
+}
+
 #[test]
 fn a_triangle_of_100000_rows_is_refused() {
     let dir = scratch("limits-triangle");

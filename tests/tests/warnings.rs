@@ -214,3 +214,34 @@ fn mixed_density_modes_are_reported_with_what_the_render_does() {
     );
     assert!(warnings(&dir, &m).0.is_empty());
 }
+
+/// `density = "alpha"` on an image without transparency is a uniform density: said, with the fix;
+/// an image whose alpha holds the shape says nothing.
+#[test]
+fn an_alpha_density_on_an_opaque_image_says_its_picture_is_lost() {
+    let dir = scratch("warn-opaque-alpha");
+    png(&dir, "grey.png", 32, 32, |x, y| {
+        ((x * 7 + y * 3) % 200) as u8
+    });
+    image::RgbaImage::from_fn(32, 32, |x, _| image::Rgba([200, 100, 50, (x * 8) as u8]))
+        .save(dir.join("shaped.png"))
+        .unwrap();
+    let m = manifest(
+        &dir,
+        &[
+            ("grey", "grey.png", "density = \"alpha\"\n"),
+            ("shaped", "shaped.png", "density = \"alpha\"\n"),
+        ],
+    );
+    let (json, lines) = warnings(&dir, &m);
+    assert_eq!(json.len(), 1, "{json:?}");
+    let (input, file, message) = &json[0];
+    assert_eq!(input.as_deref(), Some("grey"));
+    assert!(file.ends_with("grey.png"), "{file}");
+    assert!(
+        message.contains("`density = \"alpha\"`, but every pixel has the same alpha")
+            && message.contains("use `luminance`"),
+        "{message}"
+    );
+    assert_eq!(lines.len(), 1, "{lines:?}");
+}

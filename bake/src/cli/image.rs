@@ -15,7 +15,7 @@ use std::path::PathBuf;
 pub struct ImageArgs {
     /// Image size WxH in pixels (per cell for `grid`).
     #[arg(long, default_value = "256x256", value_parser = parse_size)]
-    size: (usize, usize),
+    pub(super) size: (usize, usize),
     /// Reconstruction: one point query per pixel (exact), or one splat of all points (faster;
     /// separable kernel weights, equal to the queries within a stated tolerance).
     #[arg(long, value_enum, default_value_t = Method::Query)]

@@ -97,6 +97,9 @@ pub fn input_warnings(spec: &InputSpec, grid: &Grid) -> Vec<Warning> {
                  to keep its proportions"
             ));
         }
+        if let Some(message) = opaque_alpha(spec.density, grid, "`density = \"alpha\"`") {
+            warn(message);
+        }
         if spec.wrap == Wrap::Periodic {
             if let Some(r) = seam_ratio(grid) {
                 if r > SEAM_RATIO {
@@ -125,6 +128,20 @@ pub fn input_warnings(spec: &InputSpec, grid: &Grid) -> Vec<Warning> {
         }
     }
     out
+}
+
+/// With the `alpha` density, an image without transparency (no alpha channel, or alpha the same
+/// everywhere) decodes to a uniform density: the picture is lost, and nothing else would say so.
+/// `setting` names where the mode was chosen (the manifest key or the `--density` option).
+pub fn opaque_alpha(density: DensityChannel, grid: &Grid, setting: &str) -> Option<String> {
+    let first = *grid.mass.first()?;
+    (density == DensityChannel::Alpha && grid.mass.iter().all(|&m| m == first)).then(|| {
+        format!(
+            "{setting}, but every pixel has the same alpha (the image has no transparency), so its \
+             density is uniform and its picture is lost; use `luminance` (bright is dense) or \
+             `inverted` (dark is dense), or an image whose alpha channel holds the shape"
+        )
+    })
 }
 
 /// The mean absolute mass step across both wrap seams over the mean step between neighbours
