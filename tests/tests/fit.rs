@@ -22,8 +22,13 @@ fn setup(name: &str) -> (PathBuf, PathBuf) {
     (dir, m)
 }
 
-/// `otbake fit` on `target`: (weights, relative residual) from its JSON output.
-fn fit(dir: &Path, m: &Path, target: &Path, extra: &[&str]) -> (Vec<f64>, f64) {
+/// `otbake fit` on `target`: its output and the JSON it wrote.
+fn fit_run(
+    dir: &Path,
+    m: &Path,
+    target: &Path,
+    extra: &[&str],
+) -> (std::process::Output, serde_json::Value) {
     let json = dir.join("w.json");
     let mut args = vec![
         "fit",
@@ -35,9 +40,15 @@ fn fit(dir: &Path, m: &Path, target: &Path, extra: &[&str]) -> (Vec<f64>, f64) {
     ];
     args.extend_from_slice(extra);
     let out = otbake_ok(dir, &args);
+    let v = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    (out, v)
+}
+
+/// `otbake fit` on `target`: (weights, relative residual) from its JSON output.
+fn fit(dir: &Path, m: &Path, target: &Path, extra: &[&str]) -> (Vec<f64>, f64) {
+    let (out, v) = fit_run(dir, m, target, extra);
     let printed = String::from_utf8_lossy(&out.stdout);
     assert!(printed.contains("residual"), "{printed}");
-    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     assert_eq!(v["inputs"], serde_json::json!(SHAPES));
     let w: Vec<f64> = v["weights"]
         .as_array()
@@ -143,19 +154,8 @@ fn targets_of_another_dimension_or_wrap_are_errors() {
 fn an_alpha_density_on_an_opaque_target_is_a_warning() {
     let (dir, m) = setup("fit-opaque-alpha");
     let target = shared_data().join("shapes/duck.png");
-    let json = dir.join("w.json");
     let run = |extra: &[&str]| {
-        let mut args = vec![
-            "fit",
-            m.to_str().unwrap(),
-            "--target",
-            target.to_str().unwrap(),
-            "-o",
-            json.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        let out = otbake_ok(&dir, &args);
-        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let (out, v) = fit_run(&dir, &m, &target, extra);
         (String::from_utf8_lossy(&out.stderr).into_owned(), v)
     };
     let (err, v) = run(&["--density", "alpha"]);
