@@ -423,7 +423,7 @@ fn queries(rng: &mut Rng, blend: *const OtbakeBlend, k_good: usize, buf: &mut Bu
                 let s = unsafe { otbake_blend_region_cells(blend, region, &mut cells) };
                 check(s, "otbake_blend_region_cells");
                 let len = if rng.one_in(2) {
-                    (4 * cells).min(4 * CAP)
+                    cells.saturating_mul(4).min(4 * CAP)
                 } else {
                     rng.below(4 * CAP)
                 };
