@@ -32,7 +32,7 @@ pub fn targets() -> Vec<Box<dyn Target>> {
     ]
 }
 
-/// The target called `name`: one of [`targets`], or a self-test of the harness
+/// The target called `name`: one of [`targets()`], or a self-test of the harness
 /// ([`targets::selftest`], never part of `all`).
 pub fn target(name: &str) -> Option<Box<dyn Target>> {
     let selftests = targets::selftest::all()
