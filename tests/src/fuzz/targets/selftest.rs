@@ -1,7 +1,7 @@
 //! Targets that fail on purpose, to check the harness's own promises: a panic, a hang past the
 //! watchdog's timeout, a crash that kills the process (an abort), and memory past the cap are
 //! each reported as a finding with the input that caused it. They are not part of `--target all`
-//! (see [`crate::fuzz::target`]); `tests/tests/fuzz.rs` runs each through the `otbake-fuzz`
+//! (see [`crate::fuzz::target`]); `tests/tests/fuzz_harness.rs` runs each through the `otbake-fuzz`
 //! binary, so the supervisor and the watchdog are tested as a campaign uses them.
 //!
 //! Their corpus is built in: the cases `fine` and `trigger` (a file of that text each). Mutation
