@@ -6,7 +6,9 @@
 //! tolerance, truncate, auction_eps, scaling; `seed` is the shape's sample seed, 1 unless given).
 //! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
 //! luminance, seed 1 unless `seed=` says); a mesh name (cow, fish, torus, suzanne) instead of SHAPE
-//! makes it 3D: the mesh voxelized at 64³ and a 3D Gaussian proxy. With `exact`, also runs the
+//! makes it 3D: the mesh voxelized at 64³ and a 3D Gaussian proxy; a path to a `.brdf` (or MERL
+//! `.binary`) file makes it a BRDF on a `res³` grid (`res=90` unless given), e.g.
+//! `5000 ../shared/data/brdfs/cornell_garnet_red.brdf exact`. With `exact`, also runs the
 //! exact solver and prints the cost ratio and the L2-UVP of the Sinkhorn map against the exact
 //! matching. `OTBAKE_TRACE=1` prints every stage.
 
@@ -25,6 +27,7 @@ fn main() {
     let with_exact = args.iter().skip(3).any(|s| s == "exact");
     let mut settings = SinkhornSettings::default();
     let mut seed = 1u64;
+    let mut brdf_res = 90usize;
     for kv in args.iter().skip(3).filter(|s| s.contains('=')) {
         let (k, v) = kv.split_once('=').expect("KEY=VALUE");
         let v: f64 = v.parse().expect("a number");
@@ -35,6 +38,7 @@ fn main() {
             "auction_eps" => settings.auction_eps = v,
             "scaling" => settings.scaling = v,
             "seed" => seed = v as u64,
+            "res" => brdf_res = v as usize,
             _ => panic!("unknown key {k}"),
         }
     }
@@ -45,7 +49,20 @@ fn main() {
         "torus" | "suzanne" => Some(shape),
         _ => None,
     };
+    let brdf = shape.ends_with(".brdf") || shape.ends_with(".binary");
     let grid = match mesh {
+        _ if brdf => {
+            let options = otbake::input::LoadOptions {
+                brdf_resolution: brdf_res,
+                ..Default::default()
+            };
+            otbake::input::load_with(
+                std::path::Path::new(shape),
+                DensityChannel::Luminance,
+                &options,
+            )
+            .expect("brdf")
+        }
         Some(m) => {
             let options = MeshOptions {
                 resolution: 64,

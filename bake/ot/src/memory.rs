@@ -34,9 +34,6 @@ const SINKHORN_PER_PAIR: u64 = 72;
 /// Kernel pairs per point at the default blur and truncation, by dimension (1 to 4): measured
 /// maxima over a stage's kernels on Gaussian → shape problems, with margin.
 const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [32.0, 80.0, 136.0, 224.0];
-/// The solver refuses kernels beyond this many pairs (`sinkhorn::iterate`'s `MAX_PAIRS`), so the
-/// pair term never exceeds it.
-const SINKHORN_MAX_PAIRS: u64 = 1 << 27;
 
 /// Bytes a solve of `n` points in `dim` dimensions with `settings` will allocate at its peak,
 /// beyond the two input clouds (an upper estimate; see the module docs).
@@ -63,8 +60,9 @@ pub fn estimate_bytes(settings: &SolverSettings, n: usize, dim: usize) -> u64 {
 
 /// The largest kernel Sinkhorn is expected to hold: `SINKHORN_PAIRS_PER_POINT` at the default
 /// blur, scaled by the blur's volume (`(blur_spacing / default)^dim`) and by the truncation's
-/// radius (`(truncate / 8)^(dim / 2)`), capped by the solver's own limit. An explicit `blur` is
-/// taken at the default spacing (its spacing depends on the points).
+/// radius (`(truncate / 8)^(dim / 2)`), capped by the solver's own limit (`sinkhorn::pair_limit`:
+/// max(2^27, 160 per point), at most 4096 per point; D115), which it refuses to pass. An explicit
+/// `blur` is taken at the default spacing (its spacing depends on the points).
 pub fn sinkhorn_pairs(s: &SinkhornSettings, n: u64, dim: usize) -> u64 {
     let d = dim.clamp(1, 4);
     let default = DEFAULT_BLUR_SPACING[d.min(3)];
@@ -72,7 +70,8 @@ pub fn sinkhorn_pairs(s: &SinkhornSettings, n: u64, dim: usize) -> u64 {
     let scale =
         (spacing / default).powi(d as i32) * (s.truncate / 8.0).max(0.0).powf(d as f64 / 2.0);
     let per_point = SINKHORN_PAIRS_PER_POINT[d - 1] * scale.max(1.0);
-    ((n as f64 * per_point) as u64).min(SINKHORN_MAX_PAIRS)
+    let limit = crate::sinkhorn::pair_limit(usize::try_from(n).unwrap_or(usize::MAX)) as u64;
+    ((n as f64 * per_point) as u64).min(limit)
 }
 
 #[cfg(test)]
@@ -91,11 +90,24 @@ mod tests {
             assert!(estimate_bytes(&sl, 10_000, dim) < estimate_bytes(&ex, 10_000, dim));
             assert!(estimate_bytes(&ex, 10_000, dim) < a);
         }
-        // 16M 3D points with Sinkhorn: far beyond a build machine (the kernel alone hits its cap).
+        // 16M 3D points with Sinkhorn: far beyond a build machine.
         assert!(estimate_bytes(&sk, 16 << 20, 3) > 12 << 30);
-        assert_eq!(
-            sinkhorn_pairs(&SinkhornSettings::default(), 16 << 20, 3),
-            SINKHORN_MAX_PAIRS
-        );
+    }
+
+    /// The pair term stops where the solver refuses (`sinkhorn::pair_limit`), and that limit grows
+    /// with n: 2^27 pairs for small n, 160 per point beyond 838 861 points, never more than 4096
+    /// per point.
+    #[test]
+    fn pairs_stop_at_the_solvers_limit() {
+        let wide = SinkhornSettings {
+            blur_spacing: Some(4.0),
+            ..SinkhornSettings::default()
+        };
+        assert_eq!(sinkhorn_pairs(&wide, 500_000, 3), 1 << 27);
+        assert_eq!(sinkhorn_pairs(&wide, 16 << 20, 3), 160 * (16 << 20));
+        assert_eq!(sinkhorn_pairs(&wide, 1000, 3), 4096 * 1000);
+        // At the defaults a 16M bake is below the limit: 136 per point.
+        let default = SinkhornSettings::default();
+        assert_eq!(sinkhorn_pairs(&default, 16 << 20, 3), 136 * (16 << 20));
     }
 }

@@ -249,21 +249,56 @@ fn parents_of(child: &[u32], len: usize) -> Vec<u32> {
     parent
 }
 
-/// Number of occupied cells of each level `0..=bits(D)` (for choosing the finest cell level).
-pub(super) fn cell_counts<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -> Vec<usize> {
+/// What the plan needs to know of one level of a cloud before the hierarchy is built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct LevelCount {
+    /// Occupied cells.
+    pub cells: usize,
+    /// Ordered pairs of distinct points sharing a cell, Σ n_c (n_c − 1) over the cells: divided
+    /// by n, how many other points a typical point's cell holds (a point-weighted count, which a
+    /// dense lobe dominates however few cells it fills; for a uniform cloud it is the mean count
+    /// per cell, without the +1 bias of Σ n_c²).
+    pub pairs: f64,
+}
+
+impl LevelCount {
+    /// Other points in a typical point's cell: `pairs / n`.
+    pub fn shared(&self, n: usize) -> f64 {
+        self.pairs / n.max(1) as f64
+    }
+}
+
+/// The occupied cells and the points sharing them of every level `0..=bits(D)` (for choosing the
+/// final blur and the finest cell level).
+pub(super) fn cell_counts<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -> Vec<LevelCount> {
     let mut codes: Vec<u64> = points.par_iter().map(|p| grid.code(p)).collect();
     codes.par_sort_unstable();
     let b = bits(D);
     (0..=b)
+        .into_par_iter()
         .map(|level| {
             let shift = D as u32 * (b - level);
-            if shift >= 64 {
-                return 1;
+            let prefix = |c: u64| if shift >= 64 { 0 } else { c >> shift };
+            // Runs of equal prefixes are the cells; integer sums are exact in any order.
+            let mut cells = 0usize;
+            let mut pairs = 0u128;
+            let mut run = 0u128;
+            for (k, &c) in codes.iter().enumerate() {
+                if k > 0 && prefix(c) != prefix(codes[k - 1]) {
+                    cells += 1;
+                    pairs += run * (run - 1);
+                    run = 0;
+                }
+                run += 1;
             }
-            1 + codes
-                .windows(2)
-                .filter(|w| w[0] >> shift != w[1] >> shift)
-                .count()
+            if run > 0 {
+                cells += 1;
+                pairs += run * (run - 1);
+            }
+            LevelCount {
+                cells,
+                pairs: pairs as f64,
+            }
         })
         .collect()
 }
@@ -309,8 +344,17 @@ mod tests {
         seen.sort_unstable();
         assert!(seen.iter().enumerate().all(|(i, &o)| i as u32 == o));
         let counts = cell_counts(&pts, &grid);
-        for (l, &count) in counts.iter().enumerate().take(6) {
-            assert_eq!(count, h.levels[l].len());
+        for (l, count) in counts.iter().enumerate().take(6) {
+            assert_eq!(count.cells, h.levels[l].len());
+            // Σ n_c (n_c − 1) from the level's masses (n_c = mass · n).
+            let pairs: f64 = h.levels[l]
+                .mass
+                .iter()
+                .map(|m| (m * 500.0).round())
+                .map(|c| c * (c - 1.0))
+                .sum();
+            assert_eq!(count.pairs, pairs, "level {l}");
         }
+        assert_eq!(counts[0].pairs, 500.0 * 499.0);
     }
 }

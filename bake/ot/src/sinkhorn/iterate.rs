@@ -25,7 +25,7 @@ const MAX_PAIRS_PER_POINT_LARGE: usize = 160;
 
 /// Most pairs a kernel on `rows` rows may keep: [`MAX_PAIRS_PER_POINT`] per row, and in all the
 /// larger of [`MAX_PAIRS`] and [`MAX_PAIRS_PER_POINT_LARGE`] per row.
-pub(super) fn pair_limit(rows: usize) -> usize {
+pub(crate) fn pair_limit(rows: usize) -> usize {
     let rows = rows.max(1);
     MAX_PAIRS_PER_POINT
         .saturating_mul(rows)
@@ -54,7 +54,7 @@ pub(super) fn build_kernel<const D: usize>(
             solver: NAME,
             field: "blur",
             reason: format!(
-                "the truncated kernel at blur {blur:e} ({:.2} x the mean point spacing) would keep \
+                "the truncated kernel at blur {blur:e} ({:.2} x the point spacing) would keep \
                  more than {limit} pairs for {rows} points (limits: {MAX_PAIRS_PER_POINT} per \
                  point, {MAX_PAIRS} or {MAX_PAIRS_PER_POINT_LARGE} per point in all, to keep \
                  memory linear in n): many points coincide, or \

@@ -1,6 +1,7 @@
 //! The map read off the final stage: the barycentric projection of the plan, or a one-to-one
-//! matching by a sparse auction on the final kernel's support (falling back to the barycentric map
-//! when the auction cannot match every row), in the caller's order.
+//! matching by a sparse auction on the final kernel's support, in the caller's order. An auction
+//! that cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114);
+//! the barycentric map is then computed only for the cost its report states.
 
 use super::hierarchy::Hierarchy;
 use super::kernel::{map_lists_mut, sort_lists_by_value, Kernel};
@@ -190,7 +191,7 @@ fn barycentric<const D: usize>(
 const AUCTION_START: [f64; 4] = [1.0, 1.0, 0.25, 0.25];
 
 /// Most rows completed by dense augmenting paths (O(n) per scan step each) after the sparse auction;
-/// beyond it the support is too poor and the map falls back to the barycentric projection.
+/// beyond it the support is too poor, and the solve fails naming the fixes (D114).
 const MAX_DENSE_PATHS: usize = 2000;
 
 /// Sparse auction on the final kernel's support, started from the Sinkhorn target potential.

@@ -29,8 +29,10 @@
 //!   point is then a target sample, and the matching is within n·ε_end of the best the support allows.
 //!
 //! Failure is never silent: the final stage must reach the tolerance (else
-//! [`SolveError::NotConverged`]), a non-finite value is an error, and an auction that cannot match
-//! every row on the kernel's support falls back to the barycentric map, which the report states.
+//! [`SolveError::NotConverged`]), a non-finite value is an error, a kernel past the pair limit is
+//! refused ([`SolveError::InvalidSettings`] naming `blur`), and with `map = "assignment"` an
+//! auction that cannot match every row on the kernel's support is [`SolveError::NotConverged`]
+//! with the report (docs/decisions.md, D114): never a barycentric stand-in.
 //!
 //! Determinism: every row and column update reads only the previous half-step's values and is
 //! computed in a fixed order, partial sums use fixed chunks, the kernel is built in fixed chunks and
@@ -53,6 +55,7 @@ mod settings;
 mod stages;
 mod state;
 
+pub(crate) use iterate::pair_limit;
 pub use settings::{MapKind, SinkhornSettings, DEFAULT_BLUR_SPACING};
 
 use crate::{Problem, Solution, SolveError, Wrap};

@@ -1,7 +1,7 @@
 //! The plan of a solve, fixed before the first stage: both clouds' grid hierarchies, the final
 //! blur from the point spacing, and the blur and level of every stage.
 
-use super::hierarchy::{cell_counts, Grid, Hierarchy};
+use super::hierarchy::{cell_counts, Grid, Hierarchy, LevelCount};
 use super::{SinkhornSettings, DEFAULT_BLUR_SPACING};
 
 /// What every stage runs on.
@@ -11,7 +11,7 @@ pub(super) struct Plan<const D: usize> {
     pub ht: Hierarchy<D>,
     /// Side of the cube holding both clouds (the first blur).
     pub side: f64,
-    /// Mean point spacing of the denser cloud ([`point_spacing`]).
+    /// Point spacing where a typical point of the denser cloud lives ([`point_spacing`]).
     pub spacing: f64,
     /// The final blur.
     pub blur_end: f64,
@@ -31,11 +31,6 @@ impl<const D: usize> Plan<D> {
         settings: &SinkhornSettings,
     ) -> Self {
         let side = grid.side;
-        // Cell levels: as fine as possible while both clouds have at most 3n/4 cells. The last cell
-        // stage should be one halving of the blur above the final one: a 1M-point 3D Gaussian has 518K
-        // cells on the level where the cow has 217K, and with a limit of n/2 that level was skipped, the
-        // final stage started 3.3x the blur away and took 828 iterations and 10 kernel builds instead
-        // of 135 and 5 (1.7 times the time).
         let (cs, ct) = (cell_counts(xs, grid), cell_counts(ys, grid));
         let spacing = point_spacing(&cs, &ct, side, n, D);
         let blur_end = settings.blur.unwrap_or(
@@ -44,20 +39,18 @@ impl<const D: usize> Plan<D> {
                 .unwrap_or(DEFAULT_BLUR_SPACING[D.min(3)])
                 * spacing,
         );
-        let max_level = (0..cs.len())
-            .take_while(|&l| cs[l] <= (3 * n / 4).max(1) && ct[l] <= (3 * n / 4).max(1))
-            .last()
-            .unwrap_or(0) as u32;
+        let max_level = finest_cell_level(&cs, &ct, side, n, blur_end);
         if std::env::var_os("OTBAKE_TRACE").is_some() {
-            let show = |c: &[usize]| {
+            let show = |c: &[LevelCount]| {
                 c.iter()
-                    .take(12)
-                    .map(|v| v.to_string())
+                    .take(14)
+                    .map(|v| format!("{}/{:.1}", v.cells, v.shared(n)))
                     .collect::<Vec<_>>()
                     .join(" ")
             };
             eprintln!(
-                "cells per level: source {}; target {}; finest cell level {max_level}",
+                "cells/shared per level: source {}; target {}; spacing {spacing:.4e}, final blur \
+                 {blur_end:.4e}, finest cell level {max_level}",
                 show(&cs),
                 show(&ct)
             );
@@ -103,21 +96,89 @@ impl<const D: usize> Plan<D> {
     }
 }
 
-/// The mean point spacing (V/n)^(1/d) of the denser cloud, V its occupied volume: the cells of
-/// the finest level with at least 16 points per occupied cell on average, for each cloud.
+/// Points a typical point's cell must share it with on the level the spacing is read from: enough
+/// for the count to be a density (16 per cell, as for the mean spacing before D130).
+const SPACING_SHARED: f64 = 16.0;
+
+/// The spacing never goes below this fraction of the occupied volume's mean spacing: below it the
+/// sparse part of the cloud would see a blur so far under its own spacing that Sinkhorn there is
+/// an assignment problem solved by diffusion. A 2D target with 90% of its points in a 1e-4 square
+/// (the `spike` test) had a spacing of 1/6000 of the mean and its final stage stalled at 0.15 after
+/// 2000 iterations; the Cornell BRDFs' lobes are 2 to 5.7 times denser than their mean.
+const MIN_SPACING_OF_MEAN: f64 = 1.0 / 8.0;
+
+/// The point spacing where a typical point lives, ρ^(−1/d) for the density ρ a point sees, of the
+/// denser cloud: on the finest level where a typical point's cell holds at least
+/// [`SPACING_SHARED`] other points, (n·V_cell / Σ n_c (n_c − 1))^(1/d), and at least
+/// [`MIN_SPACING_OF_MEAN`] of the mean spacing (V/n)^(1/d) of the occupied volume V (the cells of
+/// the finest level with at least 16 points per occupied cell on average) (docs/decisions.md,
+/// D130).
 ///
-/// Why the denser cloud and not the cube: a kernel row holds the target points within about
-/// √θ·blur of the row's image, so a blur set from the cube's spacing keeps ρ/ρ̄ times too many
-/// pairs wherever a cloud is concentrated — a 3D mesh volume filling a tenth of its cube gave 500
-/// to 780 pairs per point instead of about 100.
-pub(super) fn point_spacing(cs: &[usize], ct: &[usize], side: f64, n: usize, d: usize) -> f64 {
-    let volume = |counts: &[usize]| -> f64 {
+/// Why the density a point sees and not the cube's or the occupied volume's: a kernel row holds
+/// the target points within about √θ·blur of the row's image, so a blur set from a mean spacing
+/// keeps ρ/ρ̄ times too many pairs wherever a cloud is denser than its mean. A 3D mesh volume
+/// filling a tenth of its cube gave 500 to 780 pairs per point from the cube's spacing (D25); a
+/// BRDF's specular lobe holds most of the samples in a few cells of the occupied volume, and the
+/// occupied volume's spacing put thousands of points within one blur there (D38, D117). For a
+/// near-uniform cloud the two agree (the count is the mean count per cell).
+pub(super) fn point_spacing(
+    cs: &[LevelCount],
+    ct: &[LevelCount],
+    side: f64,
+    n: usize,
+    d: usize,
+) -> f64 {
+    let cell = |level: usize| (side / 2f64.powi(level as i32)).powi(d as i32);
+    let spacing = |counts: &[LevelCount]| -> f64 {
         let level = (0..counts.len())
-            .take_while(|&l| counts[l].saturating_mul(16) <= n.max(16))
+            .take_while(|&l| counts[l].shared(n) >= SPACING_SHARED)
             .last()
             .unwrap_or(0);
-        counts[level] as f64 * (side / 2f64.powi(level as i32)).powi(d as i32)
+        // One point (or none sharing level 0): the cube's side.
+        let pairs = counts[level].pairs.max(1.0);
+        let seen = (n.max(1) as f64 * cell(level) / pairs).powf(1.0 / d as f64);
+        let level = (0..counts.len())
+            .take_while(|&l| counts[l].cells.saturating_mul(16) <= n.max(16))
+            .last()
+            .unwrap_or(0);
+        let volume = counts[level].cells as f64 * cell(level);
+        let mean = (volume / n.max(1) as f64).powf(1.0 / d as f64);
+        seen.max(MIN_SPACING_OF_MEAN * mean)
     };
-    let v = volume(cs).min(volume(ct));
-    (v / n.max(1) as f64).powf(1.0 / d as f64)
+    spacing(cs).min(spacing(ct))
+}
+
+/// The finest cell level of the hierarchies (docs/decisions.md, D27, D131): as fine as possible
+/// while both clouds have at most 3n/4 cells, and finer where a dense part needs it, down to the
+/// coarsest level whose cells are no larger than the final blur, so that the last cell stage is
+/// one halving of the blur above the final one even inside a lobe (but never past the level where
+/// a typical point no longer shares its cell with another: the cells would be the points).
+///
+/// The 3n/4 rule: a 1M-point 3D Gaussian has 518K cells on the level where the cow has 217K, and
+/// with a limit of n/2 that level was skipped, the final stage started 3.3x the blur away and took
+/// 828 iterations and 10 kernel builds instead of 135 and 5. For a near-uniform cloud it already
+/// reaches a cell side below the spacing; in a peaked BRDF the background's points fill 3n/4
+/// cells while the lobe's cells still hold hundreds of points each, and the final stage started
+/// 8 halvings of the blur away.
+pub(super) fn finest_cell_level(
+    cs: &[LevelCount],
+    ct: &[LevelCount],
+    side: f64,
+    n: usize,
+    blur_end: f64,
+) -> u32 {
+    let cap = (3 * n / 4).max(1);
+    let by_cells = (0..cs.len())
+        .take_while(|&l| cs[l].cells <= cap && ct[l].cells <= cap)
+        .last()
+        .unwrap_or(0);
+    // The coarsest level with cells no larger than the final blur, or the finest level.
+    let by_blur = (0..cs.len())
+        .find(|&l| side / 2f64.powi(l as i32) <= blur_end)
+        .unwrap_or(cs.len() - 1);
+    let shared = (0..cs.len())
+        .take_while(|&l| cs[l].shared(n) >= 1.0 || ct[l].shared(n) >= 1.0)
+        .last()
+        .unwrap_or(0);
+    by_cells.max(by_blur.min(shared)) as u32
 }

@@ -26,10 +26,11 @@ impl MapKind {
 /// Settings of the Sinkhorn solver (manifest `[solver] kind = "sinkhorn"`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SinkhornSettings {
-    /// Final blur (ε = blur²) in coordinate units. `None`: `blur_spacing` × the mean point
-    /// spacing (V/n)^(1/d) of the denser cloud, V its occupied volume (`point_spacing`).
+    /// Final blur (ε = blur²) in coordinate units. `None`: `blur_spacing` × the point spacing
+    /// where a typical point lives, ρ^(−1/d) for the density ρ a point sees, of the denser cloud
+    /// (`point_spacing`; for a near-uniform cloud the mean spacing of its occupied volume).
     pub blur: Option<f64>,
-    /// Final blur as a multiple of the mean point spacing, when `blur` is not given. `None`:
+    /// Final blur as a multiple of that point spacing, when `blur` is not given. `None`:
     /// `DEFAULT_BLUR_SPACING` for the dimension.
     pub blur_spacing: Option<f64>,
     /// Blur ratio between consecutive stages, in (0, 1).
@@ -81,8 +82,9 @@ impl Default for SinkhornSettings {
 /// Revision of the solver's algorithm, part of every fingerprint (so of every map's cache key):
 /// bumped whenever the same settings give different maps, so that caches from an earlier otbake
 /// are rebaked rather than silently reused. 2: the auction on precomputed reduced costs and, in
-/// 3D, from ε/4 (`AUCTION_START`); loose mid-stage rebuilds.
-const REVISION: u32 = 2;
+/// 3D, from ε/4 (`AUCTION_START`); loose mid-stage rebuilds. 3: the final blur from the density a
+/// typical point sees, cell levels as fine as the final blur in dense parts (D130, D131).
+const REVISION: u32 = 3;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {
