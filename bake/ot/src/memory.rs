@@ -26,14 +26,21 @@ const SLICED_PER_POINT: u64 = 128;
 const SNAP_PER_POINT: u64 = 160;
 
 /// Sinkhorn, per point: both clouds' grid hierarchies (all levels), potentials and their previous
-/// values, marginals, the auction's prices and assignments.
-const SINKHORN_PER_POINT: u64 = 200;
-/// Sinkhorn, per kernel pair at the peak: the kernel's columns, costs and values, the transposed
-/// copy a rebuild makes next to the old kernel, and the auction's graph.
-const SINKHORN_PER_PAIR: u64 = 72;
-/// Kernel pairs per point at the default blur and truncation, by dimension (1 to 4): measured
-/// maxima over a stage's kernels on Gaussian → shape problems, with margin.
-const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [32.0, 80.0, 136.0, 224.0];
+/// values, scalings, marginals, the sweep's per-block column sums, the auction's prices and
+/// assignments. With [`SINKHORN_PER_PAIR`], at least the measured peaks (docs/bench-runs/
+/// 2026-12-02-sinkhorn-16m.md): 3D cow 1.75 GB at 1M, 14.5 GB at 16M with `truncate = 4`; 2D duck
+/// 1 894 B per point at 50K; and the counting allocator's peaks at n = 3000 (`tests/memory.rs`).
+const SINKHORN_PER_POINT: u64 = 400;
+/// Sinkhorn, per kernel pair at the peak: the kernel in row form (`col` u32, `k` f32, 8 bytes) and,
+/// during a whole rebuild (the old kernel is freed first), the column-test lists, their transpose
+/// and the search's per-chunk lists; the auction writes its reduced costs over the kernel's values
+/// (fitted: 17.3 bytes per pair in 3D, 23.3 in 2D with the program's fixed memory, D142).
+const SINKHORN_PER_PAIR: u64 = 20;
+/// Kernel pairs per point at the default blur and truncation, by dimension (1 to 4): the largest
+/// a stage keeps on the inputs measured, with margin. 3D: the 1M cow keeps 68.9, 50K 76.8, 3000
+/// points 88; the smoke grid, the most uneven density shipped, 61 (129 before the blur followed the
+/// density points see, D130; D142).
+const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [64.0, 80.0, 100.0, 224.0];
 
 /// Bytes a solve of `n` points in `dim` dimensions with `settings` will allocate at its peak,
 /// beyond the two input clouds (an upper estimate; see the module docs).
@@ -60,7 +67,9 @@ pub fn estimate_bytes(settings: &SolverSettings, n: usize, dim: usize) -> u64 {
 
 /// The largest kernel Sinkhorn is expected to hold: `SINKHORN_PAIRS_PER_POINT` at the default
 /// blur, scaled by the blur's volume (`(blur_spacing / default)^dim`) and by the truncation's
-/// radius (`(truncate / 8)^(dim / 2)`), capped by the solver's own limit (`sinkhorn::pair_limit`:
+/// radius (`(truncate / 8)^(dim / 2)`; the 1M cow keeps 0.385 of its pairs at `truncate = 4`, the
+/// scale says 0.354), at least one per point (every row keeps its best column), capped by the
+/// solver's own limit (`sinkhorn::pair_limit`:
 /// max(2^27, 160 per point), at most 4096 per point; D115), which it refuses to pass. An explicit
 /// `blur` is taken at the default spacing (its spacing depends on the points).
 pub fn sinkhorn_pairs(s: &SinkhornSettings, n: u64, dim: usize) -> u64 {
@@ -69,7 +78,7 @@ pub fn sinkhorn_pairs(s: &SinkhornSettings, n: u64, dim: usize) -> u64 {
     let spacing = s.blur_spacing.unwrap_or(default);
     let scale =
         (spacing / default).powi(d as i32) * (s.truncate / 8.0).max(0.0).powf(d as f64 / 2.0);
-    let per_point = SINKHORN_PAIRS_PER_POINT[d - 1] * scale.max(1.0);
+    let per_point = (SINKHORN_PAIRS_PER_POINT[d - 1] * scale).max(1.0);
     let limit = crate::sinkhorn::pair_limit(usize::try_from(n).unwrap_or(usize::MAX)) as u64;
     ((n as f64 * per_point) as u64).min(limit)
 }
@@ -106,8 +115,28 @@ mod tests {
         assert_eq!(sinkhorn_pairs(&wide, 500_000, 3), 1 << 27);
         assert_eq!(sinkhorn_pairs(&wide, 16 << 20, 3), 160 * (16 << 20));
         assert_eq!(sinkhorn_pairs(&wide, 1000, 3), 4096 * 1000);
-        // At the defaults a 16M bake is below the limit: 136 per point.
+        // At the defaults a 16M bake is below the limit: 100 per point.
         let default = SinkhornSettings::default();
-        assert_eq!(sinkhorn_pairs(&default, 16 << 20, 3), 136 * (16 << 20));
+        assert_eq!(sinkhorn_pairs(&default, 16 << 20, 3), 100 * (16 << 20));
+    }
+
+    /// A smaller truncation keeps fewer pairs, and the estimate says so (before, it never went
+    /// below the default's): `manifests/cow-16m.toml`'s `truncate = 4` fits a 24 GB machine.
+    #[test]
+    fn a_smaller_truncation_needs_less() {
+        let narrow = SinkhornSettings {
+            truncate: 4.0,
+            ..SinkhornSettings::default()
+        };
+        let pairs = sinkhorn_pairs(&narrow, 1 << 20, 3);
+        assert_eq!(pairs, (100.0 * 0.5f64.powf(1.5) * (1 << 20) as f64) as u64);
+        let sixteen = estimate_bytes(&SolverSettings::Sinkhorn(narrow), 16_000_000, 3);
+        assert!(sixteen < 20 << 30, "{sixteen}");
+        // Never below one pair per point.
+        let tiny = SinkhornSettings {
+            truncate: 1e-6,
+            ..SinkhornSettings::default()
+        };
+        assert_eq!(sinkhorn_pairs(&tiny, 1000, 3), 1000);
     }
 }
