@@ -37,6 +37,94 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
     /// Each row's `pair_cost` is ascending: a row's scan stops at the first candidate whose cost
     /// less the highest dual cannot beat the second best so far (the same result, read early).
     pub sorted: bool,
+    /// How far the graph is known to hold each row's best columns: every column left out of a
+    /// row costs more than this (∞ for a complete graph). Duals start at most 0 and only fall, so a
+    /// left-out column's reduced cost stays above it; a row whose best candidate is above it may
+    /// have a better column outside the graph, and bidding on would only start a price war (the
+    /// rows around a hole in a truncated kernel's support): it is parked for `complete` at once,
+    /// before the prices around it are ruined.
+    pub certified: f64,
+}
+
+/// What the auction asks of the world outside its graph.
+pub(crate) trait Outside {
+    /// Row `row`'s candidates beyond the graph (whose own are `own`), for its `round`-th widening
+    /// (0 first), at prices `v`, and the reduced cost up to which they are complete (every column
+    /// left out costs more, at these prices and any lower ones). `None`: no wider list (past a
+    /// limit); the row is parked.
+    fn widen(&mut self, row: usize, round: u32, v: &[f64], own: &[u32]) -> Option<Widened>;
+    /// Assigns what it can of the parked `free` rows at the end of a phase (updating the
+    /// assignment `x`, `y` and the prices `v`, which may only fall).
+    fn complete(&mut self, free: &[usize], x: &mut [u32], y: &mut [u32], v: &mut [f64]);
+}
+
+/// What [`Outside::widen`] found.
+pub(crate) enum Widened {
+    /// Nothing the graph's own candidates lack: they are certified up to this reduced cost.
+    Own(f64),
+    /// These columns (ascending), complete up to this reduced cost.
+    List(Vec<u32>, f64),
+}
+
+/// The rows whose candidates were widened beyond the graph.
+#[derive(Default)]
+struct Wider {
+    /// Row → index into `rows` (`NONE`: the graph's own), allocated at the first widening.
+    index: Vec<u32>,
+    rows: Vec<WideRow>,
+    /// Every list, one after the other (a widened row's earlier list stays behind, unread).
+    cols: Vec<u32>,
+}
+
+struct WideRow {
+    /// The row's list in `cols`, or `None`: the graph's own candidates.
+    list: Option<(usize, usize)>,
+    certified: f64,
+    round: u32,
+}
+
+impl Wider {
+    /// Row i's list (`None`: the graph's own) and what it certifies, with its round, if it was
+    /// widened.
+    fn get(&self, i: usize) -> Option<(Option<&[u32]>, f64, u32)> {
+        match self.index.get(i) {
+            Some(&k) if k != NONE => {
+                let w = &self.rows[k as usize];
+                let list = w.list.map(|(a, len)| &self.cols[a..a + len]);
+                Some((list, w.certified, w.round))
+            }
+            _ => None,
+        }
+    }
+
+    fn set(&mut self, rows: usize, i: usize, found: Widened, round: u32) {
+        if self.index.is_empty() {
+            self.index = vec![NONE; rows];
+        }
+        let row = match found {
+            Widened::Own(certified) => WideRow {
+                list: None,
+                certified,
+                round,
+            },
+            Widened::List(cols, certified) => {
+                let start = self.cols.len();
+                self.cols.extend_from_slice(&cols);
+                WideRow {
+                    list: Some((start, cols.len())),
+                    certified,
+                    round,
+                }
+            }
+        };
+        match self.index[i] {
+            NONE => {
+                self.index[i] = self.rows.len() as u32;
+                self.rows.push(row);
+            }
+            k => self.rows[k as usize] = row,
+        }
+    }
 }
 
 /// Result of [`auction`].
@@ -47,38 +135,38 @@ pub(crate) struct Matching {
     pub unassigned: usize,
     pub phases: u32,
     pub bids: u64,
-    /// Rows the `complete` callback assigned.
-    pub completed: u32,
 }
 
 /// Runs the ε-scaling auction from duals `v` with bid increments from `eps_start` down to `eps_end`
 /// (divided by `divisor` per phase). `gap` is the second-best margin used for rows with a single
 /// candidate (a large cost, e.g. the squared extent).
 ///
-/// A phase that spends [`BIDS_PER_ROW`] × rows bids is in a price war the graph cannot end (a set
-/// of rows with too few candidate columns between them) or would end only slowly; its free rows are
-/// parked, and at the end of the phase `complete` assigns them by other means (dense augmenting
-/// paths) and returns how many it assigned. The next phase then goes on from that assignment.
-pub(crate) fn auction<C, F>(
+/// A row whose best candidate costs more than `graph.certified` (its best may lie outside the
+/// graph) has its candidates widened by `outside.widen` and bids again, as often as it runs past
+/// what its list certifies; a row that cannot be widened is parked. A phase that spends
+/// [`BIDS_PER_ROW`] × rows bids is in a price war the graph cannot end or would end only slowly;
+/// its free rows are parked too. At the end of the phase `outside.complete` assigns the parked
+/// rows by other means (augmenting paths). The next phase then goes on from that assignment.
+pub(crate) fn auction<C, O>(
     graph: &Graph<'_, C>,
     v: &mut [f64],
     eps_start: f64,
     eps_end: f64,
     divisor: f64,
     gap: f64,
-    mut complete: F,
+    outside: &mut O,
 ) -> Matching
 where
     C: Fn(usize, usize) -> f64 + Sync,
-    F: FnMut(&[usize], &mut [u32], &mut [u32], &mut [f64]) -> u32,
+    O: Outside,
 {
+    let mut wider = Wider::default();
     let rows = graph.row_ptr.len() - 1;
     let mut x = vec![NONE; rows];
     let mut y = vec![NONE; graph.cols];
     let mut eps = eps_start.max(eps_end);
     let mut phases = 0u32;
     let mut bids = 0u64;
-    let mut completed = 0u32;
     // The highest dual: bids only lower duals, so it is recomputed only after `complete`.
     let highest = |v: &[f64]| v.par_iter().copied().reduce(|| f64::NEG_INFINITY, f64::max);
     let mut v_hi = highest(v);
@@ -88,7 +176,7 @@ where
         // The check reads only the duals and the assignment, so it runs in parallel over fixed
         // chunks; the queue comes out in row order for any thread count.
         let mut queue: Vec<usize> = {
-            let (xr, vr) = (&x, &*v);
+            let (xr, vr, wr) = (&x, &*v, &wider);
             (0..rows.div_ceil(CHECK_CHUNK))
                 .into_par_iter()
                 .flat_map_iter(|c| {
@@ -96,7 +184,7 @@ where
                         if xr[i] == NONE {
                             return true;
                         }
-                        let (u1, _, _, _) = best_two(graph, vr, v_hi, i);
+                        let (u1, _, _, _) = best_two(graph, wr, vr, v_hi, i);
                         let mine = (graph.cost)(i, xr[i] as usize) - vr[xr[i] as usize];
                         mine > u1 + eps
                     })
@@ -122,9 +210,21 @@ where
             head += 1;
             spent += 1;
             bids += 1;
-            let (u1, j1, u2, _) = best_two(graph, v, v_hi, i);
-            if j1 == usize::MAX {
-                parked.push(i); // a row without candidates
+            let (u1, j1, u2, _) = best_two(graph, &wider, v, v_hi, i);
+            let (certified, round) = wider
+                .get(i)
+                .map_or((graph.certified, 0), |(_, c, r)| (c, r + 1));
+            if j1 == usize::MAX || u1 > certified {
+                // A row without candidates, or whose best may lie outside its list: widened and
+                // queued again, or parked.
+                let own = &graph.col[graph.row_ptr[i]..graph.row_ptr[i + 1]];
+                match outside.widen(i, round, v, own) {
+                    Some(found) => {
+                        wider.set(rows, i, found, round);
+                        queue.push(i);
+                    }
+                    None => parked.push(i),
+                }
                 continue;
             }
             let second = if u2.is_finite() { u2 } else { u1 + gap };
@@ -141,7 +241,7 @@ where
             parked.sort_unstable();
             parked.dedup();
             parked.retain(|&i| x[i] == NONE);
-            completed += complete(&parked, &mut x, &mut y, v);
+            outside.complete(&parked, &mut x, &mut y, v);
             v_hi = highest(v);
         }
         if eps <= eps_end {
@@ -155,18 +255,25 @@ where
         unassigned,
         phases,
         bids,
-        completed,
     }
 }
 
-/// Smallest and second-smallest reduced cost of row i over its candidates: (u1, j1, u2, j2).
+/// Smallest and second-smallest reduced cost of row i over its candidates (its widened list if it
+/// has one): (u1, j1, u2, j2).
 /// `v_hi` is at least every dual (what lets a sorted row stop early).
 fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     graph: &Graph<'_, C>,
+    wider: &Wider,
     v: &[f64],
     v_hi: f64,
     i: usize,
 ) -> (f64, usize, f64, usize) {
+    if let Some((Some(cols), _, _)) = wider.get(i) {
+        return two_smallest(cols.iter().map(|&j| {
+            let j = j as usize;
+            (j, (graph.cost)(i, j) - v[j])
+        }));
+    }
     let r = graph.row_ptr[i]..graph.row_ptr[i + 1];
     let cols = &graph.col[r.clone()];
     match graph.pair_cost {
@@ -227,6 +334,32 @@ fn two_smallest(candidates: impl Iterator<Item = (usize, f64)>) -> (f64, usize, 
 mod tests {
     use super::*;
 
+    /// An [`Outside`] from two closures.
+    struct Hooks<W, F> {
+        widen: W,
+        complete: F,
+    }
+
+    impl<W, F> Outside for Hooks<W, F>
+    where
+        W: FnMut(usize, u32, &[f64]) -> Option<Widened>,
+        F: FnMut(&[usize], &mut [u32], &mut [u32], &mut [f64]),
+    {
+        fn widen(&mut self, row: usize, round: u32, v: &[f64], _: &[u32]) -> Option<Widened> {
+            (self.widen)(row, round, v)
+        }
+        fn complete(&mut self, free: &[usize], x: &mut [u32], y: &mut [u32], v: &mut [f64]) {
+            (self.complete)(free, x, y, v)
+        }
+    }
+
+    fn nothing_outside() -> impl Outside {
+        Hooks {
+            widen: |_: usize, _: u32, _: &[f64]| None,
+            complete: |_: &[usize], _: &mut [u32], _: &mut [u32], _: &mut [f64]| {},
+        }
+    }
+
     /// On a complete graph the auction with a tiny final ε finds the optimal assignment (checked
     /// against all permutations of a small problem).
     #[test]
@@ -251,9 +384,10 @@ mod tests {
             cost,
             pair_cost: None,
             sorted: false,
+            certified: f64::INFINITY,
         };
         let mut v = vec![0.0; n];
-        let m = auction(&g, &mut v, 0.5, 1e-9, 4.0, 10.0, |_, _, _, _| 0);
+        let m = auction(&g, &mut v, 0.5, 1e-9, 4.0, 10.0, &mut nothing_outside());
         assert_eq!(m.unassigned, 0);
         let total: f64 = (0..n).map(|i| cost(i, m.x[i] as usize)).sum();
         // Brute force over all permutations.
@@ -277,6 +411,46 @@ mod tests {
         }
     }
 
+    /// Two rows, one candidate column: the loser's best is priced past what the graph certifies
+    /// within a few bids, and its candidates are widened at once instead of bidding the budget
+    /// away; with the second column in its wider list it takes it, and nothing is left to complete.
+    #[test]
+    fn a_row_priced_past_the_certified_margin_is_widened_at_once() {
+        let row_ptr = [0usize, 1, 2];
+        let col = [0u32, 0];
+        let g = Graph {
+            row_ptr: &row_ptr,
+            col: &col,
+            cols: 2,
+            cost: |_, j| j as f64 * 0.25,
+            pair_cost: None,
+            sorted: false,
+            certified: 1.0,
+        };
+        let mut v = vec![0.0; 2];
+        let (mut widened, mut completed) = (Vec::new(), 0);
+        let mut hooks = Hooks {
+            widen: |i: usize, round: u32, _: &[f64]| {
+                widened.push((i, round));
+                Some(Widened::List(vec![0, 1], f64::INFINITY))
+            },
+            complete: |free: &[usize], _: &mut [u32], _: &mut [u32], _: &mut [f64]| {
+                completed += free.len()
+            },
+        };
+        let m = auction(&g, &mut v, 0.1, 0.1, 4.0, 0.5, &mut hooks);
+        assert_eq!(widened.len(), 1, "{widened:?}");
+        assert_eq!(widened[0].1, 0);
+        assert_eq!(completed, 0);
+        assert_eq!(m.unassigned, 0);
+        assert_eq!(
+            m.x[widened[0].0], 1,
+            "the widened row took the column outside the graph"
+        );
+        // Each bid lowers the price by the gap (0.5) plus ε: past 1 after two bids.
+        assert!(m.bids < 10, "{}", m.bids);
+    }
+
     /// A graph without a perfect matching ends with rows unassigned instead of looping.
     #[test]
     fn infeasible_graph_is_reported() {
@@ -290,13 +464,17 @@ mod tests {
             cost: |_, _| 1.0,
             pair_cost: None,
             sorted: false,
+            certified: f64::INFINITY,
         };
         let mut v = vec![0.0; 2];
         let mut asked = Vec::new();
-        let m = auction(&g, &mut v, 0.1, 1e-6, 4.0, 1.0, |free, _, _, _| {
-            asked.extend_from_slice(free);
-            0
-        });
+        let mut hooks = Hooks {
+            widen: |_: usize, _: u32, _: &[f64]| None,
+            complete: |free: &[usize], _: &mut [u32], _: &mut [u32], _: &mut [f64]| {
+                asked.extend_from_slice(free)
+            },
+        };
+        let m = auction(&g, &mut v, 0.1, 1e-6, 4.0, 1.0, &mut hooks);
         assert_eq!(m.unassigned, 1);
         assert!(
             !asked.is_empty(),

@@ -22,7 +22,6 @@ mod lapjv;
 mod paths;
 
 pub(crate) use lapjv::lapjv;
-pub(crate) use paths::augment;
 
 use super::cost::{det_sum, sq};
 use super::{ExactSettings, Problem, Report, Solution, SolveError, Wrap};

@@ -1,12 +1,11 @@
-//! Shortest augmenting paths (JV's Dijkstra-like search on reduced costs): what completes any
-//! partial assignment, here and after the sparse auctions.
+//! Shortest augmenting paths (JV's Dijkstra-like search on reduced costs): what completes the
+//! partial assignment of the row reductions (the sparse auctions have their own, D144).
 
 use super::NONE;
 
 /// Completes a partial assignment: one Dijkstra-like shortest augmenting path (over all n columns)
 /// per free row, then the flip along the path. With duals that certify the partial assignment the
-/// result is optimal (JV); with merely approximate duals (the sparse Sinkhorn refinement, whose
-/// duals are ε-optimal only on its candidate graph) it is still a perfect matching, found in
+/// result is optimal (JV); with merely approximate duals it is still a perfect matching, found in
 /// O(n) per scan step. Returns the number of paths.
 pub(crate) fn augment<C>(
     n: usize,

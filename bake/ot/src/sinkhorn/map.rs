@@ -1,10 +1,13 @@
 //! The map read off the final stage: the barycentric projection of the plan, or a one-to-one
-//! matching by a sparse auction on the final kernel's support, in the caller's order. An auction
-//! that cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114);
-//! the barycentric map is then computed only for the cost its report states.
+//! matching by a sparse auction on the final kernel's support, in the caller's order. Rows whose
+//! prices rise past what the support certifies are widened by exact searches, and rows a price war
+//! parks are placed by sparse shortest paths ([`super::complete`], D144). An auction that still
+//! cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114); the
+//! barycentric map is then computed only for the cost its report states.
 
+use super::complete::{Beyond, Completed, Completion};
 use super::hierarchy::Hierarchy;
-use super::kernel::{map_lists_mut, sort_lists_by_value, Kernel};
+use super::kernel::{bounds, map_lists_mut, sort_lists_by_value, Kernel};
 use super::potentials::absorbed;
 use super::report::report_of;
 use super::schedule::Plan;
@@ -66,11 +69,18 @@ pub(super) fn finish<const D: usize>(
             threshold: 0.0,
             iterations: report.iterations,
             hint: format!(
-                "map = \"assignment\": the auction left {} of {n} points unmatched on the \
-                 final kernel's support ({} phases, {} bids): the density is too uneven for the \
-                 blur; raise truncate (it is {}) or blur_spacing, or use map = \"barycentric\" \
+                "map = \"assignment\": the auction left {} of {n} points unmatched ({} phases, \
+                 {} bids; {} rows widened beyond the final kernel's support, {} augmenting \
+                 paths) within its limit of {} searched columns: the density is too uneven for \
+                 the blur; raise truncate (it is {}) or blur_spacing, or use map = \"barycentric\" \
                  or kind = \"sliced\"",
-                info.unassigned, info.phases, info.bids, settings.truncate
+                info.unassigned,
+                info.phases,
+                info.bids,
+                info.completion.widened,
+                info.completion.paths,
+                completion_edges(n),
+                settings.truncate
             ),
             report: Box::new(report),
         });
@@ -114,13 +124,15 @@ fn read_map<const D: usize>(
             let g = absorbed(&st.g, &st.v, &ht.levels[point_level].mass, st.eps);
             let ta = std::time::Instant::now();
             let eps = st.eps;
-            let r = refine_assignment(x, y, &mut st, g, plan.side, settings.auction_eps, wrap);
+            let r = refine_assignment(x, y, &mut st, g, plan, settings, wrap);
             if std::env::var_os("OTBAKE_TRACE").is_some() {
                 eprintln!("  auction {:.2}s", ta.elapsed().as_secs_f64());
             }
             match r {
-                Ok((m, info)) => (m.iter().map(|&j| y[j as usize]).collect(), Some(info)),
-                Err(info) => {
+                info if info.unassigned == 0 => {
+                    (info.x.iter().map(|&j| y[j as usize]).collect(), Some(info))
+                }
+                info => {
                     // The kernel's values now hold the reduced costs r_ij = C_ij − g_j − f_i of
                     // the absorbed potentials, and K_ij v_j ∝ exp(−r_ij/ε) in each row (the
                     // masses are uniform on the points): the same barycentric map.
@@ -190,9 +202,25 @@ fn barycentric<const D: usize>(
 /// 6.84M from ε/2 and 7.37M from ε/4.
 const AUCTION_START: [f64; 4] = [1.0, 1.0, 0.25, 0.25];
 
-/// Most rows completed by dense augmenting paths (O(n) per scan step each) after the sparse auction;
-/// beyond it the support is too poor, and the solve fails naming the fixes (D114).
-const MAX_DENSE_PATHS: usize = 2000;
+/// The part of the truncation's margin θε up to which the auction trusts the final kernel to hold
+/// a row's best columns (`auction::Graph::certified`): a whole build drops only pairs more than θε
+/// out, a local rebuild more than 7θε/8 (τ = θ/16 either side), less the potentials' drift since.
+/// A row whose prices rose past it is widened by an exact search (about one kernel row search).
+/// On cayman at 1M (`sinkhorn_scaling 1000000 ../shared/data/brdfs/cornell_cayman.brdf res=180
+/// seed=0`) half of θε parked 1874 rows where the whole of it parked 156 (D144).
+const CERTIFIED: f64 = 4.0;
+
+/// Columns the rows widened beyond the final kernel may hold in all, and edges the completion's
+/// paths may hold at once, per point and per solve: 4 bytes each (and 28 per widened row), within
+/// what a kernel rebuild held at the solve's peak (24 bytes per pair, of which the auction keeps
+/// 8). On peaked densities most rows are widened (D144: cayman 64%, 14 columns each). A solve that needs
+/// more has a support far too poor for the blur, and fails naming the fixes (D114, D144).
+const COMPLETION_EDGES_PER_POINT: usize = 24;
+const COMPLETION_EDGES_FIXED: usize = 1 << 20;
+
+fn completion_edges(n: usize) -> usize {
+    COMPLETION_EDGES_PER_POINT * n + COMPLETION_EDGES_FIXED
+}
 
 /// Sparse auction on the final kernel's support, started from the Sinkhorn target potential.
 ///
@@ -200,17 +228,19 @@ const MAX_DENSE_PATHS: usize = 2000;
 /// the Sinkhorn potentials, so prices start at 0): a row constant changes no bid, and the
 /// candidates' reduced costs are small (a few ε), so one `f32` per pair holds them to within
 /// 1e-7 of their size, far below the auction's final ε. They are computed once, in parallel, and
-/// the bids read them in order instead of computing costs from positions.
+/// the bids read them in order instead of computing costs from positions. The matching is in the
+/// result's `x` when `unassigned` is 0.
 fn refine_assignment<const D: usize>(
     x: &[[f64; D]],
     y: &[[f64; D]],
     st: &mut State,
     g: Vec<f64>,
-    side: f64,
-    auction_eps: f64,
+    plan: &Plan<D>,
+    settings: &SinkhornSettings,
     wrap: Wrap,
-) -> Result<(Vec<u32>, RefineInfo), RefineInfo> {
+) -> RefineInfo {
     let eps = st.eps;
+    let side = plan.side;
     let kern = &mut st.kernel;
     // Per row: f_i = min over the candidates of C_ij − g_j, then the candidates' C_ij − g_j − f_i,
     // written over the kernel's values (which the auction no longer needs: no second pair array).
@@ -238,35 +268,55 @@ fn refine_assignment<const D: usize>(
         cost,
         pair_cost: Some(red),
         sorted: true,
+        certified: CERTIFIED * settings.truncate * eps,
     };
-    let n_cols = y.len();
-    let mut v = vec![0.0; n_cols];
+    let bnd = bounds(&plan.ht, plan.point_level, &g);
+    let completion = Completion {
+        ht: &plan.ht,
+        level: plan.point_level,
+        x,
+        g: &g,
+        wrap,
+        margin: settings.truncate * eps,
+        max_edges: completion_edges(x.len()),
+        bnd: &bnd,
+    };
+    // Rows the support cannot place are widened by exact searches; what the auction still parks
+    // (a price war) is placed by augmenting paths on edges searched where the paths go.
+    let mut beyond = Beyond {
+        completion: &completion,
+        f: &f,
+        done: Completed::default(),
+    };
+    let mut v = vec![0.0; y.len()];
     let m = auction(
         &graph,
         &mut v,
         eps * AUCTION_START[D.min(4) - 1],
-        eps * auction_eps,
+        eps * settings.auction_eps,
         4.0,
         side * side * D as f64,
-        // Rows the sparse graph cannot place (it may lack a perfect matching, or a price war would
-        // be slow) are completed by dense shortest augmenting paths, up to a limit.
-        |free, xs, ys, v| {
-            if free.len() > MAX_DENSE_PATHS {
-                return 0;
-            }
-            crate::exact::augment(n_cols, &cost, free, xs, ys, v)
-        },
+        &mut beyond,
     );
-    let info = RefineInfo {
+    let completed = beyond.done;
+    if std::env::var_os("OTBAKE_TRACE").is_some() {
+        eprintln!(
+            "  auction: {} phases, {} bids, {} rows certified further, {} widened ({} columns), \
+             {} searches {:.2}s",
+            m.phases,
+            m.bids,
+            completed.certified,
+            completed.widened,
+            completed.wide_cols,
+            completed.searches,
+            completed.searching.as_secs_f64()
+        );
+    }
+    RefineInfo {
         unassigned: m.unassigned,
         phases: m.phases,
         bids: m.bids,
-        paths: m.completed,
+        completion: completed,
         x: m.x,
-    };
-    if info.unassigned == 0 {
-        Ok((info.x.clone(), info))
-    } else {
-        Err(info)
     }
 }

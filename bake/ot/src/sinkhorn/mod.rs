@@ -27,12 +27,16 @@
 //!   `map = "assignment"` (the default), a one-to-one matching found by a sparse ε-scaling auction on
 //!   the final kernel's support started from the Sinkhorn potentials ([`crate::auction`]): every mapped
 //!   point is then a target sample, and the matching is within n·ε_end of the best the support allows.
+//!   Where a row's prices rise past what the support certifies (peaked densities: a hole in the
+//!   support starts a price war) its candidates are widened by an exact search, and what a war
+//!   still parks is placed by sparse shortest augmenting paths ([`complete`], D144).
 //!
 //! Failure is never silent: the final stage must reach the tolerance (else
 //! [`SolveError::NotConverged`]), a non-finite value is an error, a kernel past the pair limit is
 //! refused ([`SolveError::InvalidSettings`] naming `blur`), and with `map = "assignment"` an
-//! auction that cannot match every row on the kernel's support is [`SolveError::NotConverged`]
-//! with the report (docs/decisions.md, D114): never a barycentric stand-in.
+//! auction that cannot match every row within the completion's limits is
+//! [`SolveError::NotConverged`] with the report (docs/decisions.md, D114): never a barycentric
+//! stand-in.
 //!
 //! Determinism: every row and column update reads only the previous half-step's values and is
 //! computed in a fixed order, partial sums use fixed chunks, the kernel is built in fixed chunks and
@@ -41,9 +45,11 @@
 //! The steps, one module each: [`schedule`] (the hierarchies and the blur of every stage),
 //! [`stages`] (each stage's start, kernel and tolerance), [`iterate`] (the scaling iterations and
 //! the kernel rebuilds they trigger), [`potentials`] (moving potentials between stages), [`map`]
-//! (reading the map off the final plan) and [`report`]; [`kernel`] and [`hierarchy`] are the data
+//! (reading the map off the final plan), [`complete`] (the auction beyond the final kernel's
+//! support) and [`report`]; [`kernel`] and [`hierarchy`] are the data
 //! structures, [`state`] what the steps hand each other, [`settings`] the configuration.
 
+mod complete;
 mod hierarchy;
 mod iterate;
 mod kernel;

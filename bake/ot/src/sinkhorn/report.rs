@@ -29,8 +29,14 @@ pub(super) fn report_of(
         (MapKind::Barycentric, _) => ("barycentric".to_string(), true),
         (MapKind::Assignment, Some(r)) if r.unassigned == 0 => (
             format!(
-                "assignment (auction: {} phases, {} bids, {} dense augmenting paths)",
-                r.phases, r.bids, r.paths
+                "assignment (auction: {} phases, {} bids; {} augmenting paths, {} columns settled, \
+                 {} row searches, margin up to {}x)",
+                r.phases,
+                r.bids,
+                r.completion.paths,
+                r.completion.settled,
+                r.completion.searches,
+                r.completion.widest
             ),
             true,
         ),

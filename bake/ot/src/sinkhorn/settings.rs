@@ -83,8 +83,10 @@ impl Default for SinkhornSettings {
 /// bumped whenever the same settings give different maps, so that caches from an earlier otbake
 /// are rebaked rather than silently reused. 2: the auction on precomputed reduced costs and, in
 /// 3D, from ε/4 (`AUCTION_START`); loose mid-stage rebuilds. 3: the final blur from the density a
-/// typical point sees, cell levels as fine as the final blur in dense parts (D130, D131).
-const REVISION: u32 = 3;
+/// typical point sees, cell levels as fine as the final blur in dense parts (D130, D131). 4: rows
+/// past what the final kernel certifies widened by exact searches, the rest completed by sparse
+/// shortest paths instead of dense ones (D144).
+const REVISION: u32 = 4;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

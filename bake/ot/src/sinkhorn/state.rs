@@ -1,6 +1,7 @@
 //! What the steps of a solve hand each other: the state between stages, what each stage did, and
 //! what the one-to-one refinement did.
 
+use super::complete::Completed;
 use super::hierarchy::Hierarchy;
 use super::kernel::Kernel;
 
@@ -48,8 +49,8 @@ pub(super) struct RefineInfo {
     pub unassigned: usize,
     pub phases: u32,
     pub bids: u64,
-    /// Dense augmenting paths that completed the sparse auction.
-    pub paths: u32,
+    /// What the augmenting paths that completed the sparse auction did.
+    pub completion: Completed,
 }
 
 impl RefineInfo {

@@ -12,12 +12,16 @@ use rayon::prelude::*;
 /// of (β − 2x)·y: a bound whose slack grows with the *curvature* of h over the cell, not with its
 /// gradient, so cells far from the minimizer are pruned near the top of the hierarchy even when the
 /// potential varies a lot (it does: g ≈ |y|² minus a convex function).
-pub(super) struct Bounds<const D: usize> {
+pub(in crate::sinkhorn) struct Bounds<const D: usize> {
     pub beta: Vec<Vec<[f64; D]>>,
     pub alpha: Vec<Vec<f64>>,
 }
 
-pub(super) fn bounds<const D: usize>(h: &Hierarchy<D>, level: usize, pot: &[f64]) -> Bounds<D> {
+pub(in crate::sinkhorn) fn bounds<const D: usize>(
+    h: &Hierarchy<D>,
+    level: usize,
+    pot: &[f64],
+) -> Bounds<D> {
     let pos = &h.levels[level].pos;
     let hv: Vec<f64> = pos
         .par_iter()

@@ -35,7 +35,9 @@ mod local;
 mod search;
 mod sparse;
 
+pub(super) use bounds::{bounds, Bounds};
 pub(super) use local::{rebuild_local, Local, LocalLimits};
+pub(super) use search::search;
 pub(in crate::sinkhorn) use sparse::{map_lists_mut, sort_lists_by_value};
 
 use super::hierarchy::Hierarchy;

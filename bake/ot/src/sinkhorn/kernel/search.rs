@@ -14,11 +14,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// (j, C − pot_j) in search order; returns the minimum. With `fixed = Some(t)` the threshold is `t`
 /// itself, whatever the minimum (the local rebuilds' absolute tests), and the return value is the
 /// smallest value found (∞ if none).
-pub(super) fn search<const D: usize>(
+pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
     h: &Hierarchy<D>,
     level: usize,
     bnd: &Bounds<D>,
-    pot: &[f64],
+    pot: &P,
     x: &[f64; D],
     margin: f64,
     wrap: Wrap,
@@ -34,7 +34,7 @@ pub(super) fn search<const D: usize>(
     let mut best = match fixed {
         Some(t) => t - margin,
         None => hint.map_or(f64::INFINITY, |j| {
-            cost::sq(wrap, x, &h.levels[level].pos[j as usize]) - pot[j as usize]
+            cost::sq(wrap, x, &h.levels[level].pos[j as usize]) - pot(j as usize)
         }),
     };
     // In fixed mode `best` stays the threshold; `lowest` is the smallest value found.
@@ -55,7 +55,7 @@ pub(super) fn search<const D: usize>(
         }
         let l = l as usize;
         if l == level {
-            let r = cost::sq(wrap, x, &h.levels[l].pos[c as usize]) - pot[c as usize];
+            let r = cost::sq(wrap, x, &h.levels[l].pos[c as usize]) - pot(c as usize);
             if r <= best + margin {
                 keep(out, &mut best, c, r);
             }
@@ -67,7 +67,7 @@ pub(super) fn search<const D: usize>(
         if l + 1 == level && (b - a) as usize > kids.len() {
             // Many leaves (coincident points under one finest cell): evaluate them directly.
             for j in a..b {
-                let r = cost::sq(wrap, x, &next.pos[j as usize]) - pot[j as usize];
+                let r = cost::sq(wrap, x, &next.pos[j as usize]) - pot(j as usize);
                 if r <= best + margin {
                     keep(out, &mut best, j, r);
                 }
@@ -78,7 +78,7 @@ pub(super) fn search<const D: usize>(
         for j in a..b {
             let ju = j as usize;
             let bound = if l + 1 == level {
-                cost::sq(wrap, x, &next.pos[ju]) - pot[ju]
+                cost::sq(wrap, x, &next.pos[ju]) - pot(ju)
             } else {
                 images.min_of(|p, p2| {
                     cell_bound(
@@ -155,7 +155,7 @@ pub(super) fn search_all<const D: usize>(
                     to,
                     level,
                     &bnd,
-                    pot,
+                    &|j| pot[j],
                     &from.pos[i],
                     margin,
                     wrap,
@@ -223,7 +223,7 @@ pub(super) fn search_some<const D: usize>(
                         to,
                         level,
                         bnd,
-                        pot,
+                        &|j| pot[j],
                         &from.pos[i],
                         0.0,
                         wrap,
