@@ -411,22 +411,28 @@ mod tests {
         }
     }
 
+    /// Two rows whose only candidate is column 0 of two.
+    fn two_rows_on_one_column<C: Fn(usize, usize) -> f64 + Sync>(
+        cost: C,
+        certified: f64,
+    ) -> Graph<'static, C> {
+        Graph {
+            row_ptr: &[0, 1, 2],
+            col: &[0, 0],
+            cols: 2,
+            cost,
+            pair_cost: None,
+            sorted: false,
+            certified,
+        }
+    }
+
     /// Two rows, one candidate column: the loser's best is priced past what the graph certifies
     /// within a few bids, and its candidates are widened at once instead of bidding the budget
     /// away; with the second column in its wider list it takes it, and nothing is left to complete.
     #[test]
     fn a_row_priced_past_the_certified_margin_is_widened_at_once() {
-        let row_ptr = [0usize, 1, 2];
-        let col = [0u32, 0];
-        let g = Graph {
-            row_ptr: &row_ptr,
-            col: &col,
-            cols: 2,
-            cost: |_, j| j as f64 * 0.25,
-            pair_cost: None,
-            sorted: false,
-            certified: 1.0,
-        };
+        let g = two_rows_on_one_column(|_, j| j as f64 * 0.25, 1.0);
         let mut v = vec![0.0; 2];
         let (mut widened, mut completed) = (Vec::new(), 0);
         let mut hooks = Hooks {
@@ -454,18 +460,7 @@ mod tests {
     /// A graph without a perfect matching ends with rows unassigned instead of looping.
     #[test]
     fn infeasible_graph_is_reported() {
-        // Two rows both limited to column 0.
-        let row_ptr = [0usize, 1, 2];
-        let col = [0u32, 0];
-        let g = Graph {
-            row_ptr: &row_ptr,
-            col: &col,
-            cols: 2,
-            cost: |_, _| 1.0,
-            pair_cost: None,
-            sorted: false,
-            certified: f64::INFINITY,
-        };
+        let g = two_rows_on_one_column(|_, _| 1.0, f64::INFINITY);
         let mut v = vec![0.0; 2];
         let mut asked = Vec::new();
         let mut hooks = Hooks {

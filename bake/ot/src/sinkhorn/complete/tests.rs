@@ -28,6 +28,24 @@ struct Case<const D: usize> {
     x: Vec<[f64; D]>,
     ht: Hierarchy<D>,
     level: usize,
+    /// A zero target potential, and its cell bounds.
+    g: Vec<f64>,
+    bnd: Bounds<D>,
+}
+
+impl<const D: usize> Case<D> {
+    fn completion(&self, margin: f64, max_edges: usize) -> Completion<'_, D> {
+        Completion {
+            ht: &self.ht,
+            level: self.level,
+            x: &self.x,
+            g: &self.g,
+            wrap: Wrap::Clamp,
+            margin,
+            max_edges,
+            bnd: &self.bnd,
+        }
+    }
 }
 
 fn case<const D: usize>(n: usize, peaked: bool) -> Case<D> {
@@ -35,10 +53,14 @@ fn case<const D: usize>(n: usize, peaked: bool) -> Case<D> {
     let grid = Grid::new(&xs, &ys);
     let (hs, ht) = (Hierarchy::new(&xs, &grid, 6), Hierarchy::new(&ys, &grid, 6));
     let level = ht.point_level();
+    let g = vec![0.0; n];
+    let bnd = kernel::bounds(&ht, level, &g);
     Case {
         x: hs.levels[level].pos.clone(),
         ht,
         level,
+        g,
+        bnd,
     }
 }
 
@@ -65,18 +87,7 @@ fn assert_permutation(xs: &[u32], ys: &[u32]) {
 
 fn complete_all<const D: usize>(c: &Case<D>, margin: f64) -> (Vec<u32>, Completed) {
     let n = c.x.len();
-    let g = vec![0.0; n];
-    let bnd = kernel::bounds(&c.ht, c.level, &g);
-    let completion = Completion {
-        ht: &c.ht,
-        level: c.level,
-        x: &c.x,
-        g: &g,
-        wrap: Wrap::Clamp,
-        margin,
-        max_edges: usize::MAX,
-        bnd: &bnd,
-    };
+    let completion = c.completion(margin, usize::MAX);
     let (mut xs, mut ys, mut v) = (vec![NONE; n], vec![NONE; n], vec![0.0; n]);
     let free: Vec<usize> = (0..n).collect();
     let done = completion.run(&free, &mut xs, &mut ys, &mut v);
@@ -114,18 +125,7 @@ fn three_dimensions_too() {
 fn past_the_edge_limit_rows_stay_free() {
     let c = case::<2>(300, true);
     let n = c.x.len();
-    let g = vec![0.0; n];
-    let bnd = kernel::bounds(&c.ht, c.level, &g);
-    let completion = Completion {
-        ht: &c.ht,
-        level: c.level,
-        x: &c.x,
-        g: &g,
-        wrap: Wrap::Clamp,
-        margin: 1e-9,
-        max_edges: 50,
-        bnd: &bnd,
-    };
+    let completion = c.completion(1e-9, 50);
     let (mut xs, mut ys, mut v) = (vec![NONE; n], vec![NONE; n], vec![0.0; n]);
     let free: Vec<usize> = (0..n).collect();
     let done = completion.run(&free, &mut xs, &mut ys, &mut v);
@@ -164,7 +164,7 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
         row_ptr.push(col.len());
     }
     let f: Vec<f64> = (0..n).map(|i| sq(i, col[row_ptr[i]] as usize)).collect();
-    let g = vec![0.0; n];
+    let g = &c.g;
     let graph = Graph {
         row_ptr: &row_ptr,
         col: &col,
@@ -174,17 +174,7 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
         sorted: false,
         certified: 1e-4,
     };
-    let bnd = kernel::bounds(&c.ht, c.level, &g);
-    let completion = Completion {
-        ht: &c.ht,
-        level: c.level,
-        x: &c.x,
-        g: &g,
-        wrap: Wrap::Clamp,
-        margin: 1e-4,
-        max_edges: usize::MAX,
-        bnd: &bnd,
-    };
+    let completion = c.completion(1e-4, usize::MAX);
     let mut beyond = Beyond {
         completion: &completion,
         f: &f,
