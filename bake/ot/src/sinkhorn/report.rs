@@ -29,14 +29,14 @@ pub(super) fn report_of(
         (MapKind::Barycentric, _) => ("barycentric".to_string(), true),
         (MapKind::Assignment, Some(r)) if r.unassigned == 0 => (
             format!(
-                "assignment (auction: {} phases, {} bids; {} augmenting paths, {} columns settled, \
-                 {} row searches, margin up to {}x)",
+                "assignment (auction: {} phases, {} bids; beyond the kernel's support: {} rows \
+                 certified further, {} widened with {} columns, {} augmenting paths)",
                 r.phases,
                 r.bids,
-                r.completion.paths,
-                r.completion.settled,
-                r.completion.searches,
-                r.completion.widest
+                r.completion.certified,
+                r.completion.widened,
+                r.completion.wide_cols,
+                r.completion.paths
             ),
             true,
         ),
