@@ -244,9 +244,17 @@ impl<const D: usize> Completion<'_, D> {
     /// the value up to which the list is complete (every column left out is worth more, at these
     /// prices and at any lower ones): what the auction widens a row's candidates to when its
     /// support runs out (`auction::Widen`).
-    pub fn widen(&self, i: usize, margin: f64, v: &[f64]) -> (Vec<u32>, f64) {
-        let (mut stack, mut found) = (Vec::new(), Vec::new());
-        let best = self.search(i, None, margin, v, &mut stack, &mut found);
+    /// `stack` and `found` are the search's buffers, kept by the caller across rows.
+    pub fn widen(
+        &self,
+        i: usize,
+        margin: f64,
+        v: &[f64],
+        stack: &mut Vec<(u32, u32, f64)>,
+        found: &mut Vec<(u32, f64)>,
+    ) -> (Vec<u32>, f64) {
+        found.clear();
+        let best = self.search(i, None, margin, v, stack, found);
         let mut cols: Vec<u32> = found.iter().map(|e| e.0).collect();
         cols.sort_unstable();
         (cols, best + margin)
@@ -259,10 +267,25 @@ const MAX_WIDENINGS: u32 = 20;
 /// What the auction sees beyond the final kernel's support: rows widened by exact searches, and
 /// the completion of the rows it parks.
 pub(super) struct Beyond<'a, 'c, const D: usize> {
-    pub completion: &'a Completion<'c, D>,
+    completion: &'a Completion<'c, D>,
     /// The auction's row constants: its cost is C_ij − f_i − g_j.
-    pub f: &'a [f64],
+    f: &'a [f64],
     pub done: Completed,
+    /// The widening searches' buffers (one row at a time).
+    stack: Vec<(u32, u32, f64)>,
+    found: Vec<(u32, f64)>,
+}
+
+impl<'a, 'c, const D: usize> Beyond<'a, 'c, D> {
+    pub fn new(completion: &'a Completion<'c, D>, f: &'a [f64]) -> Self {
+        Self {
+            completion,
+            f,
+            done: Completed::default(),
+            stack: Vec::new(),
+            found: Vec::new(),
+        }
+    }
 }
 
 impl<const D: usize> Outside for Beyond<'_, '_, D> {
@@ -278,7 +301,8 @@ impl<const D: usize> Outside for Beyond<'_, '_, D> {
         }
         let c = self.completion;
         let t0 = std::time::Instant::now();
-        let (cols, limit) = c.widen(row, c.margin * f64::from(1u32 << round), v);
+        let margin = c.margin * f64::from(1u32 << round);
+        let (cols, limit) = c.widen(row, margin, v, &mut self.stack, &mut self.found);
         self.done.searching += t0.elapsed();
         self.done.searches += 1;
         let certified = limit - self.f[row];
@@ -324,11 +348,6 @@ struct Searcher<'a, 'c, const D: usize> {
 }
 
 impl<const D: usize> Searcher<'_, '_, D> {
-    /// C(x_i, y_j) − pot_j: the auction's reduced cost of (i, j) up to the row constant.
-    fn value(&self, i: usize, j: usize, v: &[f64]) -> f64 {
-        self.c.value(i, j, v)
-    }
-
     /// Row i's edges, taken out of the cache (hand them back with [`Self::put_back`]): every
     /// column whose value is at most `need`, or with `need = None` within `margin` of the row's
     /// best, searched unless the cache already holds them; `None` past `max_edges`.
@@ -397,10 +416,10 @@ impl<const D: usize> Searcher<'_, '_, D> {
         };
         let base = first
             .iter()
-            .map(|&j| self.value(s, j as usize, v))
+            .map(|&j| self.c.value(s, j as usize, v))
             .fold(f64::INFINITY, f64::min);
         for &j in &first {
-            let dist = self.value(s, j as usize, v) - base;
+            let dist = self.c.value(s, j as usize, v) - base;
             labels.insert(
                 j,
                 Label {
@@ -426,12 +445,12 @@ impl<const D: usize> Searcher<'_, '_, D> {
             debug_assert_eq!(xs[i as usize], j);
             // Relax through the row assigned to j: its other columns at their reduced cost
             // relative to j's.
-            let h = self.value(i as usize, j as usize, v);
+            let h = self.c.value(i as usize, j as usize, v);
             let Some(cols) = self.take_edges(i, Some(h + margin), margin, v) else {
                 return Path::TooLarge;
             };
             for &j2 in &cols {
-                let nd = dist + self.value(i as usize, j2 as usize, v) - h;
+                let nd = dist + self.c.value(i as usize, j2 as usize, v) - h;
                 let l = labels.entry(j2).or_insert(Label {
                     dist: f64::INFINITY,
                     pred: i,

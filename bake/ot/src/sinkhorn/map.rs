@@ -5,7 +5,7 @@
 //! cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114); the
 //! barycentric map is then computed only for the cost its report states.
 
-use super::complete::{Beyond, Completed, Completion};
+use super::complete::{Beyond, Completion};
 use super::hierarchy::Hierarchy;
 use super::kernel::{bounds, map_lists_mut, sort_lists_by_value, Kernel};
 use super::potentials::absorbed;
@@ -205,15 +205,17 @@ const AUCTION_START: [f64; 4] = [1.0, 1.0, 0.25, 0.25];
 /// The part of the truncation's margin θε up to which the auction trusts the final kernel to hold
 /// a row's best columns (`auction::Graph::certified`): a whole build drops only pairs more than θε
 /// out, a local rebuild more than 7θε/8 (τ = θ/16 either side), less the potentials' drift since.
-/// A row whose prices rose past it is widened by an exact search (about one kernel row search).
-/// On cayman at 1M (`sinkhorn_scaling 1000000 ../shared/data/brdfs/cornell_cayman.brdf res=180
-/// seed=0`) half of θε parked 1874 rows where the whole of it parked 156 (D144).
+/// A row whose prices rose past it is searched exactly (about one kernel row search). Four times
+/// θε, because prices fall everywhere as bids go on: at θε the 2D duck (250K, whose auction starts
+/// at ε) widened 103K rows, past the limit, and cayman at 1M 64–100% of its rows; at 4θε the duck
+/// and the 1M cow widen none, cayman 3.6% (D144).
 const CERTIFIED: f64 = 4.0;
 
 /// Columns the rows widened beyond the final kernel may hold in all, and edges the completion's
 /// paths may hold at once, per point and per solve: 4 bytes each (and 28 per widened row), within
 /// what a kernel rebuild held at the solve's peak (24 bytes per pair, of which the auction keeps
-/// 8). On peaked densities most rows are widened (D144: cayman 64%, 14 columns each). A solve that needs
+/// 8); cayman at 1M widened 36K rows with 243K columns, the 16M cow at `truncate = 4` reached
+/// the limit (D144). A solve that needs
 /// more has a support far too poor for the blur, and fails naming the fixes (D114, D144).
 const COMPLETION_EDGES_PER_POINT: usize = 24;
 const COMPLETION_EDGES_FIXED: usize = 1 << 20;
@@ -283,11 +285,7 @@ fn refine_assignment<const D: usize>(
     };
     // Rows the support cannot place are widened by exact searches; what the auction still parks
     // (a price war) is placed by augmenting paths on edges searched where the paths go.
-    let mut beyond = Beyond {
-        completion: &completion,
-        f: &f,
-        done: Completed::default(),
-    };
+    let mut beyond = Beyond::new(&completion, &f);
     let mut v = vec![0.0; y.len()];
     let m = auction(
         &graph,

@@ -175,11 +175,7 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
         certified: 1e-4,
     };
     let completion = c.completion(1e-4, usize::MAX);
-    let mut beyond = Beyond {
-        completion: &completion,
-        f: &f,
-        done: Completed::default(),
-    };
+    let mut beyond = Beyond::new(&completion, &f);
     let mut v = vec![0.0; n];
     let m = auction(&graph, &mut v, 1e-2, 1e-9, 4.0, 2.0, &mut beyond);
     assert_eq!(m.unassigned, 0, "{:?}", beyond.done);
