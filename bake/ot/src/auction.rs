@@ -8,8 +8,9 @@
 //! smallest reduced cost C_ij − v_j and a bid lowers that column's dual by the margin over the row's
 //! second-best column plus ε.
 //!
-//! A sparse graph may admit no perfect matching; then duals fall without bound. Every phase has a
-//! processing budget, and running out of it is reported (the caller falls back), never looped on.
+//! A sparse graph may admit no perfect matching; then duals fall without bound. Every phase parks
+//! its free rows for the caller's completion once its bids stall (no free column taken for a
+//! while) or its budget runs out; what the completion cannot place is reported, never looped on.
 
 use rayon::prelude::*;
 
@@ -21,6 +22,18 @@ const NONE: u32 = u32::MAX;
 
 /// Bids per row one phase may spend in all before its free rows are parked (see [`auction`]).
 pub(crate) const BIDS_PER_ROW: u64 = 50;
+
+/// Bids in a row that take no free column, at least, before a phase parks its free rows for
+/// [`Outside::complete`] ...
+const STALL_BIDS: u64 = 4096;
+
+/// ... and at least this many per row. The auction's endgame is long (the last free rows' bids
+/// travel far in steps of ε: the 250K duck's last rows took 200K–800K bids each, without a free
+/// column taken, and ended), but a price war on a support without a perfect matching never ends
+/// and only ruins the prices around it: its rows are parked after this many bids instead of the
+/// whole budget ([`BIDS_PER_ROW`] per row). At the start of a phase, with many rows free, a free
+/// column is taken every few bids.
+const STALL_PER_ROW: u64 = 8;
 
 /// The candidate graph and its costs.
 pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
@@ -41,16 +54,17 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
     /// row costs more than this (∞ for a complete graph). Duals start at most 0 and only fall, so a
     /// left-out column's reduced cost stays above it; a row whose best candidate is above it may
     /// have a better column outside the graph, and bidding on would only start a price war (the
-    /// rows around a hole in a truncated kernel's support): it is parked for `complete` at once,
-    /// before the prices around it are ruined.
+    /// rows around a hole in a truncated kernel's support): its candidates are widened at once
+    /// ([`Outside::widen`]), before the prices around it are ruined.
     pub certified: f64,
 }
 
 /// What the auction asks of the world outside its graph.
 pub(crate) trait Outside {
-    /// Row `row`'s candidates beyond the graph (whose own are `own`), for its `round`-th widening
-    /// (0 first), at prices `v`, and the reduced cost up to which they are complete (every column
-    /// left out costs more, at these prices and any lower ones). `None`: no wider list (past a
+    /// Row `row`'s candidates beyond the graph (whose own are `own`), after `round` widenings that
+    /// returned a list (a moved certificate does not count), at prices `v`, and the reduced cost
+    /// up to which they are complete (every column left out costs more, at these prices and any
+    /// lower ones). `None`: no wider list (past a
     /// limit); the row is parked.
     fn widen(&mut self, row: usize, round: u32, v: &[f64], own: &[u32]) -> Option<Widened>;
     /// Assigns what it can of the parked `free` rows at the end of a phase (updating the
@@ -102,6 +116,8 @@ impl Wider {
             self.index = vec![NONE; rows];
         }
         let row = match found {
+            // Only a list counts as a widening: a moved certificate holds nothing, and a row in a
+            // long (but ending) price war may need many.
             Widened::Own(certified) => WideRow {
                 list: None,
                 certified,
@@ -113,7 +129,7 @@ impl Wider {
                 WideRow {
                     list: Some((start, cols.len())),
                     certified,
-                    round,
+                    round: round + 1,
                 }
             }
         };
@@ -143,9 +159,10 @@ pub(crate) struct Matching {
 ///
 /// A row whose best candidate costs more than `graph.certified` (its best may lie outside the
 /// graph) has its candidates widened by `outside.widen` and bids again, as often as it runs past
-/// what its list certifies; a row that cannot be widened is parked. A phase that spends
-/// [`BIDS_PER_ROW`] × rows bids is in a price war the graph cannot end or would end only slowly;
-/// its free rows are parked too. At the end of the phase `outside.complete` assigns the parked
+/// what its list certifies; a row that cannot be widened is parked. A phase whose bids take no
+/// free column for [`STALL_PER_ROW`] × rows bids in a row, or that spends [`BIDS_PER_ROW`] × rows
+/// in all, is in a price war the graph cannot end or would end only slowly; its free rows are
+/// parked too. At the end of the phase `outside.complete` assigns the parked
 /// rows by other means (augmenting paths). The next phase then goes on from that assignment.
 pub(crate) fn auction<C, O>(
     graph: &Graph<'_, C>,
@@ -200,20 +217,22 @@ where
         let mut parked = Vec::new();
         let mut head = 0usize;
         let budget = BIDS_PER_ROW * rows as u64;
-        let mut spent = 0u64;
+        let stall = STALL_BIDS.max(STALL_PER_ROW * rows as u64);
+        let (mut spent, mut since) = (0u64, 0u64);
         while head < queue.len() {
-            if spent >= budget {
+            if spent >= budget || since >= stall {
                 parked.extend_from_slice(&queue[head..]);
                 break;
             }
             let i = queue[head];
             head += 1;
             spent += 1;
+            since += 1;
             bids += 1;
             let (u1, j1, u2, _) = best_two(graph, &wider, v, v_hi, i);
             let (certified, round) = wider
                 .get(i)
-                .map_or((graph.certified, 0), |(_, c, r)| (c, r + 1));
+                .map_or((graph.certified, 0), |(_, c, r)| (c, r));
             if j1 == usize::MAX || u1 > certified {
                 // A row without candidates, or whose best may lie outside its list: widened and
                 // queued again, or parked.
@@ -235,6 +254,8 @@ where
             if prev != NONE {
                 x[prev as usize] = NONE;
                 queue.push(prev as usize);
+            } else {
+                since = 0;
             }
         }
         if !parked.is_empty() {
@@ -268,11 +289,14 @@ fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     v_hi: f64,
     i: usize,
 ) -> (f64, usize, f64, usize) {
-    if let Some((Some(cols), _, _)) = wider.get(i) {
-        return two_smallest(cols.iter().map(|&j| {
+    if let Some((Some(cols), certified, _)) = wider.get(i) {
+        let (u1, j1, u2, j2) = two_smallest(cols.iter().map(|&j| {
             let j = j as usize;
             (j, (graph.cost)(i, j) - v[j])
         }));
+        // Every column left out of the list costs more than it certifies: the second best is at
+        // most that (a list of one column must not bid its price down by the whole `gap`).
+        return (u1, j1, u2.min(certified.max(u1)), j2);
     }
     let r = graph.row_ptr[i]..graph.row_ptr[i + 1];
     let cols = &graph.col[r.clone()];
@@ -455,6 +479,39 @@ mod tests {
         );
         // Each bid lowers the price by the gap (0.5) plus ε: past 1 after two bids.
         assert!(m.bids < 10, "{}", m.bids);
+    }
+
+    /// A war on a support without a perfect matching (3000 rows, two candidate columns) is parked
+    /// once it has gone the stall without taking a free column, not after the whole bid budget.
+    #[test]
+    fn a_war_that_takes_no_free_column_is_parked_at_the_stall() {
+        let rows = 3000;
+        let row_ptr: Vec<usize> = (0..=rows).map(|i| 2 * i).collect();
+        let col: Vec<u32> = (0..2 * rows).map(|e| (e % 2) as u32).collect();
+        let g = Graph {
+            row_ptr: &row_ptr,
+            col: &col,
+            cols: rows,
+            cost: |_, j| j as f64 * 0.25,
+            pair_cost: None,
+            sorted: false,
+            certified: f64::INFINITY,
+        };
+        let mut v = vec![0.0; rows];
+        let mut parked = Vec::new();
+        let mut hooks = Hooks {
+            widen: |_: usize, _: u32, _: &[f64]| None,
+            complete: |free: &[usize], _: &mut [u32], _: &mut [u32], _: &mut [f64]| {
+                parked.extend_from_slice(free)
+            },
+        };
+        let m = auction(&g, &mut v, 0.1, 0.1, 4.0, 1.0, &mut hooks);
+        let stall = STALL_BIDS.max(STALL_PER_ROW * rows as u64);
+        assert!(stall < BIDS_PER_ROW * rows as u64);
+        // Two bids take the two columns; then every bid displaces a row.
+        assert_eq!(m.bids, 2 + stall);
+        assert_eq!(parked.len(), rows - 2);
+        assert_eq!(m.unassigned, rows - 2);
     }
 
     /// A graph without a perfect matching ends with rows unassigned instead of looping.

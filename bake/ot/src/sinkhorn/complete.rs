@@ -19,7 +19,9 @@
 //! reaches the row; a search that runs out of columns before reaching a free one starts over with
 //! the margin four times larger, so a path is always found (at the largest margins the graph is
 //! the dense one), and a path longer than the margin is searched once more with the margin at its
-//! length, so it is a shortest one. Time and memory follow the rows the paths visit, not n.
+//! length, so it is a shortest one. Where the auction's certificate covers the edges a path needs
+//! from a row, the row's kernel candidates are read instead ([`Support`]). Time and memory follow
+//! the rows the paths visit, not n.
 //!
 //! The paths are Dijkstra's on reduced costs from the free row, as in Jonker–Volgenant, with the
 //! duals of the settled columns lowered afterwards so that the path's edges are tight. The auction's
@@ -58,12 +60,30 @@ pub(super) struct Completion<'a, const D: usize> {
     pub wrap: Wrap,
     /// The first margin of a row's edges (the kernel's θε).
     pub margin: f64,
-    /// Most edges held at once (over all searched rows); a completion that needs more gives up on
-    /// its remaining rows, which the solve then reports unmatched.
+    /// Most edges held at once (over all searched rows: past it the cache of searched rows is let
+    /// go); a row whose own search, or a path whose labels (a quarter as many), would pass it
+    /// gives up, and the solve reports the rows left unmatched.
     pub max_edges: usize,
     /// The cell bounds of `g` on `ht` ([`kernel::bounds`]): lower bounds for every price the
     /// auction reaches, since prices start at 0 and only fall.
     pub bnd: &'a Bounds<D>,
+    /// The auction's own graph, where it certifies a row's edges: read instead of searched.
+    pub support: Option<Support<'a>>,
+}
+
+/// The final kernel's support as the auction sees it: a row's candidates hold every column whose
+/// auction cost C_ij − f_i − g_j − v_j is at most `certified` (prices only fall, so this holds for
+/// the whole auction). A path through a row needs its columns up to some value; where the
+/// certificate covers it the row's candidates are read, a few hundred nanoseconds, instead of
+/// searched over the hierarchy (microseconds): the paths of the auction's endgame settle thousands
+/// of columns each.
+#[derive(Clone, Copy)]
+pub(super) struct Support<'a> {
+    pub row_ptr: &'a [usize],
+    pub col: &'a [u32],
+    /// The auction's row constants f_i.
+    pub f: &'a [f64],
+    pub certified: f64,
 }
 
 /// What one completion did (for the report and the trace).
@@ -73,8 +93,9 @@ pub(super) struct Completed {
     pub paths: u32,
     /// Columns settled in all paths (the work).
     pub settled: u64,
-    /// Row searches.
+    /// Row searches, and rows whose candidates were read from the support instead.
     pub searches: u64,
+    pub read: u64,
     /// Largest margin a path needed, as a multiple of the first.
     pub widest: f64,
     /// Most edges held at once.
@@ -94,6 +115,7 @@ impl Completed {
         self.paths += other.paths;
         self.settled += other.settled;
         self.searches += other.searches;
+        self.read += other.read;
         self.widest = self.widest.max(other.widest);
         self.edges = self.edges.max(other.edges);
         self.widened += other.widened;
@@ -141,7 +163,7 @@ enum Path {
     Found(u32, f64),
     /// No free column within the margin.
     Exhausted,
-    /// The edges would pass `max_edges`.
+    /// One row's edges, or the path's labels, would pass their limits.
     TooLarge,
 }
 
@@ -289,8 +311,8 @@ impl<'a, 'c, const D: usize> Beyond<'a, 'c, D> {
 }
 
 impl<const D: usize> Outside for Beyond<'_, '_, D> {
-    /// The row's columns within θε·2^round of its best over all columns (every widening doubles
-    /// the margin), as long as all wider lists together stay within `max_edges`.
+    /// The row's columns within `margin`·2^round of its best over all columns (every widening
+    /// doubles the margin), as long as all wider lists together stay within `max_edges`.
     ///
     /// Most rows past what the kernel certifies are only where every price has fallen (bids only
     /// lower prices): their search finds nothing their own candidates lack, and only the
@@ -323,11 +345,12 @@ impl<const D: usize> Outside for Beyond<'_, '_, D> {
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!(
                 "  completion: {} of {} parked rows placed, {} columns settled, {} searches, \
-                 margin up to {}x, {} edges, {:.2}s searching",
+                 {} rows read, margin up to {}x, {} edges, {:.2}s searching",
                 done.paths,
                 free.len(),
                 done.settled,
                 done.searches,
+                done.read,
                 done.widest,
                 done.edges,
                 done.searching.as_secs_f64()
@@ -347,7 +370,23 @@ struct Searcher<'a, 'c, const D: usize> {
     done: Completed,
 }
 
-impl<const D: usize> Searcher<'_, '_, D> {
+/// A row's edges: its candidates in the support, or a searched list taken out of the cache.
+enum Cols<'c> {
+    Support(&'c [u32]),
+    Searched(Vec<u32>),
+}
+
+impl std::ops::Deref for Cols<'_> {
+    type Target = [u32];
+    fn deref(&self) -> &[u32] {
+        match self {
+            Cols::Support(c) => c,
+            Cols::Searched(c) => c,
+        }
+    }
+}
+
+impl<'c, const D: usize> Searcher<'_, 'c, D> {
     /// Row i's edges, taken out of the cache (hand them back with [`Self::put_back`]): every
     /// column whose value is at most `need`, or with `need = None` within `margin` of the row's
     /// best, searched unless the cache already holds them; `None` past `max_edges`.
@@ -361,7 +400,14 @@ impl<const D: usize> Searcher<'_, '_, D> {
         need: Option<f64>,
         margin: f64,
         v: &[f64],
-    ) -> Option<Vec<u32>> {
+    ) -> Option<Cols<'c>> {
+        if let (Some(sp), Some(t)) = (self.c.support, need) {
+            let iu = i as usize;
+            if t - sp.f[iu] <= sp.certified {
+                self.done.read += 1;
+                return Some(Cols::Support(&sp.col[sp.row_ptr[iu]..sp.row_ptr[iu + 1]]));
+            }
+        }
         let held = match (self.edges.get(&i), need) {
             (Some(e), Some(t)) => e.limit >= t,
             _ => false,
@@ -380,21 +426,29 @@ impl<const D: usize> Searcher<'_, '_, D> {
             let limit = need.unwrap_or(best + margin);
             self.done.searching += t0.elapsed();
             self.done.searches += 1;
+            if self.found.len() > self.c.max_edges {
+                return None;
+            }
             let old = self.edges.get(&i).map_or(0, |e| e.cols.len());
             self.held = self.held - old + self.found.len();
             if self.held > self.c.max_edges {
-                return None;
+                // The cache only saves searching again: let it go, not the path (a path reads
+                // each row's edges once).
+                self.edges.clear();
+                self.held = self.found.len();
             }
             self.done.edges = self.done.edges.max(self.held);
             let mut cols: Vec<u32> = self.found.iter().map(|e| e.0).collect();
             cols.sort_unstable();
             self.edges.insert(i, Edges { limit, cols });
         }
-        self.edges.get_mut(&i).map(|e| std::mem::take(&mut e.cols))
+        self.edges
+            .get_mut(&i)
+            .map(|e| Cols::Searched(std::mem::take(&mut e.cols)))
     }
 
-    fn put_back(&mut self, i: u32, cols: Vec<u32>) {
-        if let Some(e) = self.edges.get_mut(&i) {
+    fn put_back(&mut self, i: u32, cols: Cols<'c>) {
+        if let (Some(e), Cols::Searched(cols)) = (self.edges.get_mut(&i), cols) {
             e.cols = cols;
         }
     }
@@ -418,7 +472,7 @@ impl<const D: usize> Searcher<'_, '_, D> {
             .iter()
             .map(|&j| self.c.value(s, j as usize, v))
             .fold(f64::INFINITY, f64::min);
-        for &j in &first {
+        for &j in first.iter() {
             let dist = self.c.value(s, j as usize, v) - base;
             labels.insert(
                 j,
@@ -449,7 +503,7 @@ impl<const D: usize> Searcher<'_, '_, D> {
             let Some(cols) = self.take_edges(i, Some(h + margin), margin, v) else {
                 return Path::TooLarge;
             };
-            for &j2 in &cols {
+            for &j2 in cols.iter() {
                 let nd = dist + self.c.value(i as usize, j2 as usize, v) - h;
                 let l = labels.entry(j2).or_insert(Label {
                     dist: f64::INFINITY,

@@ -5,7 +5,7 @@
 //! cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114); the
 //! barycentric map is then computed only for the cost its report states.
 
-use super::complete::{Beyond, Completion};
+use super::complete::{Beyond, Completion, Support};
 use super::hierarchy::Hierarchy;
 use super::kernel::{bounds, map_lists_mut, sort_lists_by_value, Kernel};
 use super::potentials::absorbed;
@@ -193,14 +193,14 @@ fn barycentric<const D: usize>(
         .collect()
 }
 
-/// The auction's first ε as a fraction of the final Sinkhorn ε, by dimension (1D to 4D; it goes
-/// down from there by 4 per phase to `auction_eps`, 1/4 by default). In 3D, at the default blur of
-/// one point spacing, the Sinkhorn potentials are already good prices at ε/4: one phase there took
-/// 1.58M bids on the 250K cow instead of 3.23M in two phases from ε (less than half the time), and
-/// 10.8M instead of 17.8M bids on the 1M cow (0.57 of the time), with the same cost to 7 digits.
-/// In 2D, at 1.5 spacings, the first phase pays: the 250K duck (seed 0) took 6.18M bids from ε,
-/// 6.84M from ε/2 and 7.37M from ε/4.
-const AUCTION_START: [f64; 4] = [1.0, 1.0, 0.25, 0.25];
+/// The auction's first ε as a fraction of the final Sinkhorn ε (it goes down from there by 4 per
+/// phase to `auction_eps`, 1/4 by default: one phase). The Sinkhorn potentials are already good
+/// prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow instead of 3.23M in two phases
+/// from ε, and 10.8M instead of 17.8M on the 1M cow, with the same cost to 7 digits. In 2D two
+/// phases from ε took 16% fewer bids on the 250K duck at seed 0, but at seed 1 the second phase
+/// freed 131K rows and ended in a price war that never ended (100M bids); one phase from ε/4
+/// took 7.39M bids and widened no row (D145).
+const AUCTION_START: f64 = 0.25;
 
 /// The part of the truncation's margin θε up to which the auction trusts the final kernel to hold
 /// a row's best columns (`auction::Graph::certified`): a whole build drops only pairs more than θε
@@ -210,6 +210,13 @@ const AUCTION_START: [f64; 4] = [1.0, 1.0, 0.25, 0.25];
 /// at ε) widened 103K rows, past the limit, and cayman at 1M 64–100% of its rows; at 4θε the duck
 /// and the 1M cow widen none, cayman 3.6% (D144).
 const CERTIFIED: f64 = 4.0;
+
+/// The first margin of a widened row's list and of a completion's edges, as a part of θε. A list
+/// certifies its row up to its best plus the margin and holds about margin^(d/2) times the
+/// kernel's columns per row: at θε the 2D heart (250K, seed 0) widened 71K rows with 99 columns
+/// each, past the limit, and its completion held 78 edges per searched row. A row or path that
+/// needs more doubles it (a path: fourfold).
+const FIRST_MARGIN: f64 = 0.25;
 
 /// Columns the rows widened beyond the final kernel may hold in all, and edges the completion's
 /// paths may hold at once, per point and per solve: 4 bytes each (and 28 per widened row), within
@@ -263,6 +270,7 @@ fn refine_assignment<const D: usize>(
     sort_lists_by_value(&kern.row_ptr, &mut kern.col, &mut kern.k);
     let (row_ptr, col, red) = (&kern.row_ptr, &kern.col, &kern.k);
     let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]) - f[i] - g[j];
+    let certified = CERTIFIED * settings.truncate * eps;
     let graph = Graph {
         row_ptr,
         col,
@@ -270,7 +278,7 @@ fn refine_assignment<const D: usize>(
         cost,
         pair_cost: Some(red),
         sorted: true,
-        certified: CERTIFIED * settings.truncate * eps,
+        certified,
     };
     let bnd = bounds(&plan.ht, plan.point_level, &g);
     let completion = Completion {
@@ -279,9 +287,15 @@ fn refine_assignment<const D: usize>(
         x,
         g: &g,
         wrap,
-        margin: settings.truncate * eps,
+        margin: FIRST_MARGIN * settings.truncate * eps,
         max_edges: completion_edges(x.len()),
         bnd: &bnd,
+        support: Some(Support {
+            row_ptr,
+            col,
+            f: &f,
+            certified,
+        }),
     };
     // Rows the support cannot place are widened by exact searches; what the auction still parks
     // (a price war) is placed by augmenting paths on edges searched where the paths go.
@@ -290,7 +304,7 @@ fn refine_assignment<const D: usize>(
     let m = auction(
         &graph,
         &mut v,
-        eps * AUCTION_START[D.min(4) - 1],
+        eps * AUCTION_START,
         eps * settings.auction_eps,
         4.0,
         side * side * D as f64,

@@ -85,8 +85,10 @@ impl Default for SinkhornSettings {
 /// 3D, from ε/4 (`AUCTION_START`); loose mid-stage rebuilds. 3: the final blur from the density a
 /// typical point sees, cell levels as fine as the final blur in dense parts (D130, D131). 4: rows
 /// past what the final kernel certifies widened by exact searches, the rest completed by sparse
-/// shortest paths instead of dense ones (D144).
-const REVISION: u32 = 4;
+/// shortest paths instead of dense ones (D144). 5: the auction in one phase from ε/4 in every
+/// dimension, a phase whose bids stall parked for the paths, which read the support where it
+/// certifies a row (D145).
+const REVISION: u32 = 5;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

@@ -44,6 +44,7 @@ impl<const D: usize> Case<D> {
             margin,
             max_edges,
             bnd: &self.bnd,
+            support: None,
         }
     }
 }
@@ -195,4 +196,48 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
         got - want <= n as f64 * 1e-9 + 1e-12 * want,
         "{got} vs exact {want}"
     );
+}
+
+/// With the auction's support given (each row's 12 nearest targets, certified up to the nearest
+/// left-out target of any row) the paths read the rows the support covers instead of searching
+/// them, and the result is still the exact assignment.
+#[test]
+fn rows_the_support_certifies_are_read_and_the_result_is_exact() {
+    let c = case::<2>(400, true);
+    let n = c.x.len();
+    let y = &c.ht.levels[c.level].pos;
+    let sq = |i: usize, j: usize| cost::sq(Wrap::Clamp, &c.x[i], &y[j]);
+    let (mut row_ptr, mut col, mut f) = (vec![0usize], Vec::new(), Vec::new());
+    let mut certified = f64::INFINITY;
+    for i in 0..n {
+        let mut near: Vec<u32> = (0..n as u32).collect();
+        near.sort_by(|&a, &b| {
+            sq(i, a as usize)
+                .total_cmp(&sq(i, b as usize))
+                .then(a.cmp(&b))
+        });
+        let fi = sq(i, near[0] as usize);
+        certified = certified.min(sq(i, near[12] as usize) - fi);
+        f.push(fi);
+        let mut own = near[..12].to_vec();
+        own.sort_unstable();
+        col.extend_from_slice(&own);
+        row_ptr.push(col.len());
+    }
+    let completion = Completion {
+        support: Some(Support {
+            row_ptr: &row_ptr,
+            col: &col,
+            f: &f,
+            certified: certified * 0.999,
+        }),
+        ..c.completion(1e-9, usize::MAX)
+    };
+    let (mut xs, mut ys, mut v) = (vec![NONE; n], vec![NONE; n], vec![0.0; n]);
+    let free: Vec<usize> = (0..n).collect();
+    let done = completion.run(&free, &mut xs, &mut ys, &mut v);
+    assert_permutation(&xs, &ys);
+    assert!(done.read > 0, "{done:?}");
+    let (got, want) = (total(&c, &xs), exact_cost(&c));
+    assert!((got - want).abs() <= 1e-9 * want, "{got} vs exact {want}");
 }
