@@ -61,10 +61,10 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
 
 /// What the auction asks of the world outside its graph.
 pub(crate) trait Outside {
-    /// Row `row`'s candidates beyond the graph (whose own are `own`), after `round` widenings that
-    /// returned a list (a moved certificate does not count), at prices `v`, and the reduced cost
-    /// up to which they are complete (every column left out costs more, at these prices and any
-    /// lower ones). `None`: no wider list (past a
+    /// Row `row`'s candidates beyond the graph (whose own are `own`), after `round` widenings (a
+    /// moved certificate counts: the next search's margin doubles all the same), at prices `v`,
+    /// and the reduced cost up to which they are complete (every column left out costs more, at
+    /// these prices and any lower ones). `None`: no wider list (past a
     /// limit); the row is parked.
     fn widen(&mut self, row: usize, round: u32, v: &[f64], own: &[u32]) -> Option<Widened>;
     /// Assigns what it can of the parked `free` rows at the end of a phase (updating the
@@ -116,12 +116,10 @@ impl Wider {
             self.index = vec![NONE; rows];
         }
         let row = match found {
-            // Only a list counts as a widening: a moved certificate holds nothing, and a row in a
-            // long (but ending) price war may need many.
             Widened::Own(certified) => WideRow {
                 list: None,
                 certified,
-                round,
+                round: round + 1,
             },
             Widened::List(cols, certified) => {
                 let start = self.cols.len();

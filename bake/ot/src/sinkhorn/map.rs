@@ -211,12 +211,11 @@ const AUCTION_START: f64 = 0.25;
 /// and the 1M cow widen none, cayman 3.6% (D144).
 const CERTIFIED: f64 = 4.0;
 
-/// The first margin of a widened row's list and of a completion's edges, as a part of θε. A list
-/// certifies its row up to its best plus the margin and holds about margin^(d/2) times the
-/// kernel's columns per row: at θε the 2D heart (250K, seed 0) widened 71K rows with 99 columns
-/// each, past the limit, and its completion held 78 edges per searched row. A row or path that
-/// needs more doubles it (a path: fourfold).
-const FIRST_MARGIN: f64 = 0.25;
+/// The first margin of a widened row's list and of a completion's edges, as a part of θε; a
+/// row or path that needs more doubles it (a path: fourfold). A quarter of θε made cayman at 1M
+/// search 527K rows instead of 77K (certificates crossed four times as soon), 32.6 s of its
+/// auction, for no gain once the 2D auction runs one phase (D145).
+const FIRST_MARGIN: f64 = 1.0;
 
 /// Columns the rows widened beyond the final kernel may hold in all, and edges the completion's
 /// paths may hold at once, per point and per solve: 4 bytes each (and 28 per widened row), within
