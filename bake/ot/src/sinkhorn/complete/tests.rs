@@ -34,6 +34,22 @@ struct Case<const D: usize> {
 }
 
 impl<const D: usize> Case<D> {
+    /// C(x_i, y_j).
+    fn cost(&self, i: usize, j: usize) -> f64 {
+        cost::sq(Wrap::Clamp, &self.x[i], &self.ht.levels[self.level].pos[j])
+    }
+
+    /// Every target, nearest to row i first (ties to the lower index).
+    fn nearest(&self, i: usize) -> Vec<u32> {
+        let mut near: Vec<u32> = (0..self.x.len() as u32).collect();
+        near.sort_by(|&a, &b| {
+            self.cost(i, a as usize)
+                .total_cmp(&self.cost(i, b as usize))
+                .then(a.cmp(&b))
+        });
+        near
+    }
+
     fn completion(&self, margin: f64, max_edges: usize) -> Completion<'_, D> {
         Completion {
             ht: &self.ht,
@@ -66,17 +82,13 @@ fn case<const D: usize>(n: usize, peaked: bool) -> Case<D> {
 }
 
 fn total<const D: usize>(c: &Case<D>, xs: &[u32]) -> f64 {
-    let y = &c.ht.levels[c.level].pos;
-    (0..xs.len())
-        .map(|i| cost::sq(Wrap::Clamp, &c.x[i], &y[xs[i] as usize]))
-        .sum()
+    (0..xs.len()).map(|i| c.cost(i, xs[i] as usize)).sum()
 }
 
 fn exact_cost<const D: usize>(c: &Case<D>) -> f64 {
-    let y = &c.ht.levels[c.level].pos;
-    let cost = |i: usize, j: usize| cost::sq(Wrap::Clamp, &c.x[i], &y[j]);
+    let cost = |i: usize, j: usize| c.cost(i, j);
     let lap = lapjv(c.x.len(), &cost, 1.0);
-    (0..c.x.len()).map(|i| cost(i, lap.x[i] as usize)).sum()
+    (0..c.x.len()).map(|i| c.cost(i, lap.x[i] as usize)).sum()
 }
 
 fn assert_permutation(xs: &[u32], ys: &[u32]) {
@@ -150,18 +162,11 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
     use crate::auction::{auction, Graph};
     let c = case::<2>(400, true);
     let n = c.x.len();
-    let y = &c.ht.levels[c.level].pos;
-    let sq = |i: usize, j: usize| cost::sq(Wrap::Clamp, &c.x[i], &y[j]);
+    let sq = |i: usize, j: usize| c.cost(i, j);
     let mut row_ptr = vec![0usize];
     let mut col = Vec::new();
     for i in 0..n {
-        let mut near: Vec<u32> = (0..n as u32).collect();
-        near.sort_by(|&a, &b| {
-            sq(i, a as usize)
-                .total_cmp(&sq(i, b as usize))
-                .then(a.cmp(&b))
-        });
-        col.extend_from_slice(&near[..3]);
+        col.extend_from_slice(&c.nearest(i)[..3]);
         row_ptr.push(col.len());
     }
     let f: Vec<f64> = (0..n).map(|i| sq(i, col[row_ptr[i]] as usize)).collect();
@@ -205,17 +210,11 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
 fn rows_the_support_certifies_are_read_and_the_result_is_exact() {
     let c = case::<2>(400, true);
     let n = c.x.len();
-    let y = &c.ht.levels[c.level].pos;
-    let sq = |i: usize, j: usize| cost::sq(Wrap::Clamp, &c.x[i], &y[j]);
+    let sq = |i: usize, j: usize| c.cost(i, j);
     let (mut row_ptr, mut col, mut f) = (vec![0usize], Vec::new(), Vec::new());
     let mut certified = f64::INFINITY;
     for i in 0..n {
-        let mut near: Vec<u32> = (0..n as u32).collect();
-        near.sort_by(|&a, &b| {
-            sq(i, a as usize)
-                .total_cmp(&sq(i, b as usize))
-                .then(a.cmp(&b))
-        });
+        let near = c.nearest(i);
         let fi = sq(i, near[0] as usize);
         certified = certified.min(sq(i, near[12] as usize) - fi);
         f.push(fi);
