@@ -61,8 +61,8 @@ pub(super) struct Completion<'a, const D: usize> {
     /// The first margin of a row's edges (the kernel's θε).
     pub margin: f64,
     /// Most edges held at once (over all searched rows: past it the cache of searched rows is let
-    /// go); a row whose own search, or a path whose labels (a quarter as many), would pass it
-    /// gives up, and the solve reports the rows left unmatched.
+    /// go); a path through a row whose own search would pass it gives up, and the solve reports
+    /// the rows left unmatched.
     pub max_edges: usize,
     /// The cell bounds of `g` on `ht` ([`kernel::bounds`]): lower bounds for every price the
     /// auction reaches, since prices start at 0 and only fall.
@@ -72,8 +72,8 @@ pub(super) struct Completion<'a, const D: usize> {
 }
 
 /// The final kernel's support as the auction sees it: a row's candidates hold every column whose
-/// auction cost C_ij − f_i − g_j − v_j is at most `certified` (prices only fall, so this holds for
-/// the whole auction). A path through a row needs its columns up to some value; where the
+/// auction cost C_ij − f_i − g_j − v_j is at most `certified`, as far as the auction itself trusts
+/// its graph (`auction::Graph::certified`; prices only fall, so it holds for the whole auction). A path through a row needs its columns up to some value; where the
 /// certificate covers it the row's candidates are read, a few hundred nanoseconds, instead of
 /// searched over the hierarchy (microseconds): the paths of the auction's endgame settle thousands
 /// of columns each.
@@ -163,7 +163,7 @@ enum Path {
     Found(u32, f64),
     /// No free column within the margin.
     Exhausted,
-    /// One row's edges, or the path's labels, would pass their limits.
+    /// One row's edges would pass `max_edges`.
     TooLarge,
 }
 
