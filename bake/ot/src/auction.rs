@@ -61,10 +61,9 @@ pub(crate) struct Graph<'a, C: Fn(usize, usize) -> f64 + Sync> {
 
 /// What the auction asks of the world outside its graph.
 pub(crate) trait Outside {
-    /// Row `row`'s candidates beyond the graph (whose own are `own`), after `round` widenings (a
-    /// moved certificate counts: the next search's margin doubles all the same), at prices `v`,
-    /// and the reduced cost up to which they are complete (every column left out costs more, at
-    /// these prices and any lower ones). `None`: no wider list (past a
+    /// Row `row`'s candidates beyond the graph (whose own are `own`), for its `round`-th widening
+    /// (0 first), at prices `v`, and the reduced cost up to which they are complete (every column
+    /// left out costs more, at these prices and any lower ones). `None`: no wider list (past a
     /// limit); the row is parked.
     fn widen(&mut self, row: usize, round: u32, v: &[f64], own: &[u32]) -> Option<Widened>;
     /// Assigns what it can of the parked `free` rows at the end of a phase (updating the
@@ -119,7 +118,7 @@ impl Wider {
             Widened::Own(certified) => WideRow {
                 list: None,
                 certified,
-                round: round + 1,
+                round,
             },
             Widened::List(cols, certified) => {
                 let start = self.cols.len();
@@ -127,7 +126,7 @@ impl Wider {
                 WideRow {
                     list: Some((start, cols.len())),
                     certified,
-                    round: round + 1,
+                    round,
                 }
             }
         };
@@ -230,7 +229,7 @@ where
             let (u1, j1, u2, _) = best_two(graph, &wider, v, v_hi, i);
             let (certified, round) = wider
                 .get(i)
-                .map_or((graph.certified, 0), |(_, c, r)| (c, r));
+                .map_or((graph.certified, 0), |(_, c, r)| (c, r + 1));
             if j1 == usize::MAX || u1 > certified {
                 // A row without candidates, or whose best may lie outside its list: widened and
                 // queued again, or parked.

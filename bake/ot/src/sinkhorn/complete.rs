@@ -73,10 +73,10 @@ pub(super) struct Completion<'a, const D: usize> {
 
 /// The final kernel's support as the auction sees it: a row's candidates hold every column whose
 /// auction cost C_ij − f_i − g_j − v_j is at most `certified`, as far as the auction itself trusts
-/// its graph (`auction::Graph::certified`; prices only fall, so it holds for the whole auction). A path through a row needs its columns up to some value; where the
-/// certificate covers it the row's candidates are read, a few hundred nanoseconds, instead of
-/// searched over the hierarchy (microseconds): the paths of the auction's endgame settle thousands
-/// of columns each.
+/// its graph (`auction::Graph::certified`; prices only fall, so it holds for the whole auction).
+/// A path through a row needs its columns up to some value; where the certificate covers it the
+/// row's candidates are read, a few hundred nanoseconds, instead of searched over the hierarchy
+/// (microseconds): the paths of the auction's endgame settle thousands of columns each.
 #[derive(Clone, Copy)]
 pub(super) struct Support<'a> {
     pub row_ptr: &'a [usize],

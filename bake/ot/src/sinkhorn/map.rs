@@ -198,7 +198,7 @@ fn barycentric<const D: usize>(
 /// prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow instead of 3.23M in two phases
 /// from ε, and 10.8M instead of 17.8M on the 1M cow, with the same cost to 7 digits. In 2D two
 /// phases from ε took 16% fewer bids on the 250K duck at seed 0, but at seed 1 the second phase
-/// freed 131K rows and ended in a price war that never ended (100M bids); one phase from ε/4
+/// freed 131K rows and its last free row was still bidding after 100M bids; one phase from ε/4
 /// took 7.39M bids and widened no row (D145).
 const AUCTION_START: f64 = 0.25;
 
@@ -210,12 +210,6 @@ const AUCTION_START: f64 = 0.25;
 /// at ε) widened 103K rows, past the limit, and cayman at 1M 64–100% of its rows; at 4θε the duck
 /// and the 1M cow widen none, cayman 3.6% (D144).
 const CERTIFIED: f64 = 4.0;
-
-/// The first margin of a widened row's list and of a completion's edges, as a part of θε; a
-/// row or path that needs more doubles it (a path: fourfold). A quarter of θε made cayman at 1M
-/// search 527K rows instead of 77K (certificates crossed four times as soon), 32.6 s of its
-/// auction, for no gain once the 2D auction runs one phase (D145).
-const FIRST_MARGIN: f64 = 1.0;
 
 /// Columns the rows widened beyond the final kernel may hold in all, and edges the completion's
 /// paths may hold at once, per point and per solve: 4 bytes each (and 28 per widened row), within
@@ -286,7 +280,7 @@ fn refine_assignment<const D: usize>(
         x,
         g: &g,
         wrap,
-        margin: FIRST_MARGIN * settings.truncate * eps,
+        margin: settings.truncate * eps,
         max_edges: completion_edges(x.len()),
         bnd: &bnd,
         support: Some(Support {

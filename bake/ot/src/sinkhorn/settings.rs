@@ -58,9 +58,10 @@ pub struct SinkhornSettings {
     pub map: MapKind,
     /// `map = "assignment"` only: the auction's final ε as a fraction of the final Sinkhorn ε.
     /// The matching is within n·ε_auction of the best the kernel's support allows; each division
-    /// by 4 is one more auction phase (about 10 bids per point). Default 1/4 (two phases): at 5K
-    /// points the cost is within 0.02% of exact and the L2-UVP 0.05%; 1/16 gives 0.002% and
-    /// 0.015%, 1 (one phase) 0.12% and 0.1% (BENCHMARKS.md).
+    /// by 4 is one more auction phase (about 10 bids per point). Default 1/4 (one phase: the
+    /// auction starts at ε/4, D145): at 5K points the cost is within 0.03% of exact and the
+    /// L2-UVP 0.05%; 1/16 gives 0.002% and 0.015%, 1 (one phase at ε) 0.12% and 0.1%
+    /// (BENCHMARKS.md).
     pub auction_eps: f64,
 }
 
