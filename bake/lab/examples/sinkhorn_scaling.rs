@@ -86,8 +86,12 @@ fn main() {
     };
     let (sk, seconds) = timing::wall(|| solve(&problem, &SolverSettings::Sinkhorn(settings)));
     let sk = sk.expect("sinkhorn");
+    // FNV-1a of the map's bits: two builds solve alike when their digests agree.
+    let digest = sk.mapped.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, v| {
+        (h ^ u64::from(v.to_bits())).wrapping_mul(0x100_0000_01b3)
+    });
     println!(
-        "sinkhorn n={n} {shape}: {seconds:.3} s, cost {:.6e}\n  {}",
+        "sinkhorn n={n} {shape}: {seconds:.3} s, cost {:.6e}, map digest {digest:016x}\n  {}",
         sk.report.cost, sk.report.detail
     );
     if with_exact {

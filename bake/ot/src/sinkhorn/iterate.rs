@@ -494,7 +494,7 @@ impl Rebuild {
             hs,
             ht,
             st.level,
-            &st.kernel,
+            &mut st.kernel,
             &g,
             &st.f0,
             &st.g0,
@@ -515,8 +515,7 @@ impl Rebuild {
             wrap,
         );
         let how = match local {
-            Some(kernel::Local::Built(k, r, c)) => {
-                st.kernel = k;
+            Some(kernel::Local::Built(r, c)) => {
                 st.support = if mid { Support::Loose } else { Support::Local };
                 format!(
                     "local ({r} rows, {c} columns{})",

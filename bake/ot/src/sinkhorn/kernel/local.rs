@@ -4,7 +4,7 @@
 use super::super::hierarchy::Hierarchy;
 use super::bounds::bounds;
 use super::search::search_some;
-use super::sparse::{fill_lists, union};
+use super::sparse::{map_lists_mut, merge_lists_in_place, union};
 use super::{Kernel, K_MIN};
 use crate::cost;
 use crate::Wrap;
@@ -28,15 +28,17 @@ pub(in crate::sinkhorn) struct LocalLimits {
 
 /// What a local rebuild did.
 pub(in crate::sinkhorn) enum Local {
-    /// The new kernel, with the numbers of rows and columns searched again.
-    Built(Kernel, usize, usize),
+    /// The kernel was rebuilt in place; the numbers of rows and columns searched again.
+    Built(usize, usize),
     /// More than the allowed number of rows or columns moved: build the whole kernel instead.
     TooMany,
 }
 
-/// A kernel for the new target potential `g`, built from `old` by searching again only the rows and
+/// Rebuilds `kern` in place for the new target potential `g` by searching again only the rows and
 /// columns whose potentials moved by more than τε since the last whole build (`f0`, `g0`: the
-/// potentials of that build; `old` holds its pairs and every pair added since).
+/// potentials of that build; `kern` holds its pairs and every pair added since). In place, because
+/// an old and a new kernel side by side were the solve's peak memory; `kern` is unchanged when
+/// the result is `TooMany` or `None`.
 ///
 /// Why it is enough. Every pair the whole build dropped had C − f0 − g0 > θε. A pair of a row and
 /// a column that both stayed within τε of (`f0`, `g0`) therefore still has C − f − g > (θ − 2τ)ε,
@@ -53,7 +55,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     src: &Hierarchy<D>,
     tgt: &Hierarchy<D>,
     level: usize,
-    old: &Kernel,
+    kern: &mut Kernel,
     g: &[f64],
     f0: &[f64],
     g0: &[f64],
@@ -85,6 +87,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     let cols: Vec<u32> = (0..nt as u32)
         .filter(|&j| (g[j as usize] - g0[j as usize]).abs() > moved)
         .collect();
+    let old = &*kern;
     // Upper bounds of the new row minima over the old pairs.
     let mut f: Vec<f64> = (0..m)
         .into_par_iter()
@@ -131,8 +134,8 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     if old.pairs() + extra.len() > max_pairs {
         return None;
     }
-    // Rows are the old lists merged with the new pairs (both sorted), valued for the new (f, g),
-    // counted first and written into the new kernel's arrays.
+    // Rows are the old lists merged with the new pairs (both sorted), in the kernel's own arrays,
+    // then valued for the new (f, g).
     let mut starts = vec![0usize; m + 1];
     for &(i, _) in &extra {
         starts[i as usize + 1] += 1;
@@ -140,30 +143,25 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     for i in 0..m {
         starts[i + 1] += starts[i];
     }
-    let lists = |i: usize| {
-        union(
-            &old.col[old.row_ptr[i]..old.row_ptr[i + 1]],
-            extra[starts[i]..starts[i + 1]].iter().map(|e| e.1),
-        )
-    };
-    let (row_ptr, col, k) = fill_lists(
-        m,
-        |i| lists(i).count(),
-        |i, cols, vals| {
-            for ((j, c), v) in lists(i).zip(cols.iter_mut()).zip(vals.iter_mut()) {
-                let ju = j as usize;
-                let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
-                *c = j;
-                *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
-            }
-        },
-    );
-    let kernel = Kernel {
-        row_ptr,
-        col,
-        k,
-        cols: nt,
-        f,
-    };
-    Some(Local::Built(kernel, rows.len(), cols.len()))
+    let new_cols = |i: usize| extra[starts[i]..starts[i + 1]].iter().map(|e| e.1);
+    let lens: Vec<usize> = (0..m)
+        .into_par_iter()
+        .map(|i| union(&old.col[old.row_ptr[i]..old.row_ptr[i + 1]], new_cols(i)).count())
+        .collect();
+    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, &lens, new_cols);
+    let Kernel {
+        row_ptr, col, k, ..
+    } = kern;
+    k.resize(col.len(), 0.0);
+    map_lists_mut(row_ptr, k, |i, vals| {
+        let r = row_ptr[i]..row_ptr[i + 1];
+        for (v, &j) in vals.iter_mut().zip(&col[r]) {
+            let ju = j as usize;
+            let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
+            *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
+        }
+        0.0
+    });
+    kern.f = f;
+    Some(Local::Built(rows.len(), cols.len()))
 }

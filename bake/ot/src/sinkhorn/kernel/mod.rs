@@ -43,8 +43,9 @@ pub(in crate::sinkhorn) use sparse::{map_lists_mut, sort_lists_by_value};
 use super::hierarchy::Hierarchy;
 use crate::cost;
 use crate::Wrap;
+use rayon::prelude::*;
 use search::search_all;
-use sparse::{fill_lists, transpose, union};
+use sparse::{merge_lists_in_place, transpose, union};
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
 const CHUNK: usize = 1024;
@@ -119,28 +120,26 @@ pub(super) fn build<const D: usize>(
     let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap, max_pairs)?;
     // Column test against f.
     let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap, max_pairs)?;
-    // Column-test pairs as rows, then the union with the row-test pairs, row by row: counted
-    // first, then written into the kernel's arrays.
-    let (eptr, eidx) = transpose(&cptr, &cidx, xs.len());
+    // Column-test pairs as rows: the kernel's pattern. Every row-test pair is among them (see
+    // above) but for rounding; any that is not is merged in, in place. Then the values, into the
+    // one new array: the pattern's transient copies were the whole build's peak memory.
+    let (mut row_ptr, mut col) = transpose(&cptr, &cidx, xs.len());
     drop((cptr, cidx));
-    let lists = |i: usize| {
-        union(
-            &ridx[rptr[i]..rptr[i + 1]],
-            eidx[eptr[i]..eptr[i + 1]].iter().copied(),
-        )
-    };
-    let (row_ptr, col, k) = fill_lists(
-        xs.len(),
-        |i| lists(i).count(),
-        |i, cols, vals| {
-            for ((j, c), v) in lists(i).zip(cols.iter_mut()).zip(vals.iter_mut()) {
-                let ju = j as usize;
-                let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
-                *c = j;
-                *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
-            }
-        },
-    );
+    let best = |i: usize| ridx[rptr[i]..rptr[i + 1]].iter().copied();
+    let lens: Vec<usize> = (0..xs.len())
+        .into_par_iter()
+        .map(|i| union(&col[row_ptr[i]..row_ptr[i + 1]], best(i)).count())
+        .collect();
+    merge_lists_in_place(&mut row_ptr, &mut col, &lens, best);
+    let mut k = vec![0f32; col.len()];
+    map_lists_mut(&row_ptr, &mut k, |i, vals| {
+        for (v, &j) in vals.iter_mut().zip(&col[row_ptr[i]..row_ptr[i + 1]]) {
+            let ju = j as usize;
+            let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
+            *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
+        }
+        0.0
+    });
     Some(Kernel {
         row_ptr,
         col,

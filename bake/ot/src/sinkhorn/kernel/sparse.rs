@@ -1,9 +1,10 @@
-//! Sparse lists in fixed chunks: filling lists of known lengths in place, mapping them in place, merging sorted lists, and the block-parallel transpose of a pattern.
+//! Sparse lists in fixed chunks: mapping them in place, merging sorted lists (into a kernel's own
+//! arrays, in place), and the block-parallel transpose of a pattern.
 //!
 //! Memory is the point of most of this: a kernel holds ~70 pairs per point, so every transient copy
 //! of a pair array costs as much as the rest of the solve. Lists are therefore counted first and
-//! then filled into their final arrays (disjoint slices, one per chunk), never gathered per chunk
-//! and copied.
+//! written into their final arrays (disjoint slices, one per chunk), never gathered per chunk and
+//! copied, and a pattern that gains a few entries grows in place.
 
 use super::CHUNK;
 use rayon::prelude::*;
@@ -16,39 +17,6 @@ fn pointers(lens: Vec<usize>) -> Vec<usize> {
         ptr.push(ptr.last().unwrap() + l);
     }
     ptr
-}
-
-/// `m` lists whose lengths `count(i)` are known before their entries: the arrays are allocated
-/// once, at their final size, and `fill(i, entries, values)` writes list i into its own slices, in
-/// parallel over fixed chunks of lists (the bytes do not depend on the thread count).
-pub(super) fn fill_lists<C, F>(m: usize, count: C, fill: F) -> (Vec<usize>, Vec<u32>, Vec<f32>)
-where
-    C: Fn(usize) -> usize + Sync,
-    F: Fn(usize, &mut [u32], &mut [f32]) + Sync,
-{
-    let ptr = pointers((0..m).into_par_iter().map(&count).collect());
-    let total = ptr[m];
-    let mut idx = vec![0u32; total];
-    let mut vals = vec![0f32; total];
-    let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
-    let (mut rest_i, mut rest_v) = (&mut idx[..], &mut vals[..]);
-    for c in 0..m.div_ceil(CHUNK) {
-        let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
-        let len = ptr[b] - ptr[a];
-        let (pi, ri) = std::mem::take(&mut rest_i).split_at_mut(len);
-        let (pv, rv) = std::mem::take(&mut rest_v).split_at_mut(len);
-        rest_i = ri;
-        rest_v = rv;
-        parts.push((a, b, pi, pv));
-    }
-    parts.into_par_iter().for_each(|(a, b, pi, pv)| {
-        let base = ptr[a];
-        for i in a..b {
-            let r = ptr[i] - base..ptr[i + 1] - base;
-            fill(i, &mut pi[r.clone()], &mut pv[r]);
-        }
-    });
-    (ptr, idx, vals)
 }
 
 /// `f(i, values of list i)` for every list of (`ptr`, `vals`), in place, in parallel over fixed
@@ -135,6 +103,62 @@ pub(super) fn union<'a>(
         (None, Some(_)) => b.next(),
         (None, None) => None,
     })
+}
+
+/// Merges into every list of (`ptr`, `idx`) the sorted entries `new(i)`, in place: list i becomes
+/// the sorted union of its entries and `new(i)`, `lens[i]` long (that union's size). The array
+/// grows once, by exactly what the lists gain (a large allocation grows by remapping its pages,
+/// without a copy), and the lists are merged from the last to the first, each from its end, so
+/// that no entry is overwritten before it is read: a list only moves towards the end, and a list
+/// ends, after the merge, no earlier than it did before. Sequential: one pass over the entries
+/// from the first list that gains any.
+pub(super) fn merge_lists_in_place<'a, I>(
+    ptr: &mut Vec<usize>,
+    idx: &mut Vec<u32>,
+    lens: &[usize],
+    new: impl Fn(usize) -> I,
+) where
+    I: DoubleEndedIterator<Item = u32> + 'a,
+{
+    let m = lens.len();
+    let new_ptr = pointers(lens.to_vec());
+    let total = new_ptr[m];
+    debug_assert!(total >= idx.len());
+    idx.reserve_exact(total - idx.len());
+    idx.resize(total, 0);
+    let first = (0..m).find(|&i| new_ptr[i + 1] != ptr[i + 1]).unwrap_or(m);
+    for i in (first..m).rev() {
+        let (lo, mut r) = (ptr[i], ptr[i + 1]);
+        let mut w = new_ptr[i + 1];
+        let mut add = new(i).rev().peekable();
+        loop {
+            let old = (r > lo).then(|| idx[r - 1]);
+            let v = match (old, add.peek().copied()) {
+                (Some(a), Some(b)) => {
+                    if a >= b {
+                        r -= 1;
+                    }
+                    if b >= a {
+                        add.next();
+                    }
+                    a.max(b)
+                }
+                (Some(a), None) => {
+                    r -= 1;
+                    a
+                }
+                (None, Some(b)) => {
+                    add.next();
+                    b
+                }
+                (None, None) => break,
+            };
+            w -= 1;
+            idx[w] = v;
+        }
+        debug_assert_eq!(w, new_ptr[i], "list {i}: lens[{i}] is not its union's size");
+    }
+    *ptr = new_ptr;
 }
 
 /// Column blocks of a transpose, filled in parallel: each block owns a contiguous range of the

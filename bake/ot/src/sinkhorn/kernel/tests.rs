@@ -157,11 +157,12 @@ fn local_rebuild_keeps_every_pair_it_promises() {
             v + small + patch + jump
         })
         .collect();
-    let Some(Local::Built(kern, rows, cols)) = rebuild_local(
+    let mut kern = whole.clone();
+    let Some(Local::Built(rows, cols)) = rebuild_local(
         &hs,
         &ht,
         level,
-        &whole,
+        &mut kern,
         &g,
         &whole.f,
         &g0,
@@ -187,6 +188,10 @@ fn local_rebuild_keeps_every_pair_it_promises() {
             .fold(f64::INFINITY, f64::min);
         assert_eq!(kern.f[i], f, "row {i}: f is the exact row minimum");
         let kept = &kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
+        assert!(kept.windows(2).all(|w| w[0] < w[1]), "row {i} is sorted");
+        for j in &whole.col[whole.row_ptr[i]..whole.row_ptr[i + 1]] {
+            assert!(kept.contains(j), "pair ({i},{j}) of the old kernel is kept");
+        }
         for j in 0..ys.len() {
             let reduced = sq(&xs.pos[i], &ys.pos[j]) - f - g[j];
             assert!(reduced >= -1e-12, "pair ({i},{j}) below its row minimum");
@@ -211,5 +216,60 @@ fn local_rebuild_keeps_every_pair_it_promises() {
             let i = i as usize;
             assert!(kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]].contains(&(j as u32)));
         }
+    }
+}
+
+/// Merging in place gives every list the sorted union of its entries and the new ones: lists that
+/// gain nothing, empty lists, new entries already present, lists before and after the first that
+/// gains.
+#[test]
+fn lists_merge_in_place_into_their_unions() {
+    let m = 400;
+    let lists: Vec<Vec<u32>> = (0..m)
+        .map(|i| {
+            let mut l: Vec<u32> = (0..(i * 7919) % 11)
+                .map(|t| ((i * 31 + t * 97) % 500) as u32)
+                .collect();
+            l.sort_unstable();
+            l.dedup();
+            l
+        })
+        .collect();
+    let adds: Vec<Vec<u32>> = (0..m)
+        .map(|i| {
+            if i < 37 || i % 3 == 0 {
+                return Vec::new();
+            }
+            // Half of them repeat an entry the list has.
+            let mut l: Vec<u32> = (0..(i * 13) % 7)
+                .map(|t| ((i * 17 + t * 53) % 500) as u32)
+                .collect();
+            l.extend(lists[i].iter().step_by(2));
+            l.sort_unstable();
+            l.dedup();
+            l
+        })
+        .collect();
+    let mut ptr = vec![0usize];
+    let mut idx = Vec::new();
+    for l in &lists {
+        idx.extend(l);
+        ptr.push(idx.len());
+    }
+    let want: Vec<Vec<u32>> = lists
+        .iter()
+        .zip(&adds)
+        .map(|(a, b)| {
+            let mut u: Vec<u32> = a.iter().chain(b).copied().collect();
+            u.sort_unstable();
+            u.dedup();
+            u
+        })
+        .collect();
+    let lens: Vec<usize> = want.iter().map(Vec::len).collect();
+    sparse::merge_lists_in_place(&mut ptr, &mut idx, &lens, |i| adds[i].iter().copied());
+    assert_eq!(idx.len(), lens.iter().sum::<usize>());
+    for i in 0..m {
+        assert_eq!(&idx[ptr[i]..ptr[i + 1]], &want[i][..], "list {i}");
     }
 }
