@@ -7,6 +7,8 @@ use cli::args::{Cli, Command};
 use cli::{bake, bench, brdf, budget, fit, image, volume};
 
 fn main() {
+    // Freed solver buffers go back to the system (the peak resident memory of a bake; D147).
+    otbake_ot::memory::keep_large_blocks_mapped();
     let matches = Cli::command()
         .mut_arg("memory", |a| a.help(budget::help()))
         .get_matches();

@@ -21,6 +21,8 @@ use otbake::solve::{solve, ExactSettings, Problem, SinkhornSettings, SolverSetti
 use otbake_lab::timing;
 
 fn main() {
+    // As `otbake` does: freed solver buffers go back to the system (D147).
+    otbake_ot::memory::keep_large_blocks_mapped();
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).map_or(5000, |s| s.parse().expect("N"));
     let shape = args.get(2).map_or("duck", String::as_str);

@@ -29,6 +29,8 @@ fn status_bytes(key: &str) -> u64 {
 }
 
 fn main() {
+    // As `otbake` does: freed solver buffers go back to the system (D147).
+    otbake_ot::memory::keep_large_blocks_mapped();
     let args: Vec<String> = std::env::args().collect();
     let solver = args.get(1).map_or("sinkhorn", String::as_str);
     let n: usize = args.get(2).map_or(5000, |s| s.parse().expect("N"));

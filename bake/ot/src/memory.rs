@@ -48,6 +48,27 @@ const SINKHORN_FIXED: u64 = 2 << 20;
 /// density points see, D130; D142).
 const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [64.0, 80.0, 100.0, 224.0];
 
+/// Keeps the C allocator's threshold for serving a block by its own mapping at its initial
+/// 128 KiB, for the whole process, so that what a solve frees goes back to the system.
+///
+/// glibc raises that threshold each time a mapped block is freed, up to 32 MiB; from then on the
+/// solvers' transient arrays of a few MiB (per-chunk search lists, row pointers, potentials) come
+/// from the heap, whose freed memory stays resident. Measured peak resident memory (D147): 250K 3D
+/// cow 358 → 245 MB, 250K 2D duck 352 → 285 MB, the same CPU time. A library does not change its
+/// host's allocator on its own: the binaries call this once at start; the estimates above hold
+/// either way. Returns whether it applied (glibc on Linux only).
+pub fn keep_large_blocks_mapped() -> bool {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: `mallopt` only sets an allocator parameter; any value is accepted or refused.
+        unsafe { libc::mallopt(libc::M_MMAP_THRESHOLD, 128 * 1024) == 1 }
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        false
+    }
+}
+
 /// Bytes a solve of `n` points in `dim` dimensions with `settings` will allocate at its peak,
 /// beyond the two input clouds (an upper estimate; see the module docs).
 pub fn estimate_bytes(settings: &SolverSettings, n: usize, dim: usize) -> u64 {
