@@ -204,7 +204,7 @@ const AUCTION_START: f64 = 0.25;
 
 /// The part of the truncation's margin θε up to which the auction trusts the final kernel to hold
 /// a row's best columns (`auction::Graph::certified`): a whole build drops only pairs more than θε
-/// out, a local rebuild more than 7θε/8 (τ = θ/16 either side), less the potentials' drift since.
+/// out, a local rebuild more than 3θε/4 (τ = θ/8 either side), less the potentials' drift since.
 /// A row whose prices rose past it is searched exactly (about one kernel row search). Four times
 /// θε, because prices fall everywhere as bids go on: at θε the 2D duck (250K, whose auction starts
 /// at ε) widened 103K rows, past the limit, and cayman at 1M 64–100% of its rows; at 4θε the duck

@@ -88,8 +88,8 @@ impl Default for SinkhornSettings {
 /// past what the final kernel certifies widened by exact searches, the rest completed by sparse
 /// shortest paths instead of dense ones (D144). 5: the auction in one phase from ε/4 in every
 /// dimension, a phase whose bids stall parked for the paths, which read the support where it
-/// certifies a row (D145).
-const REVISION: u32 = 5;
+/// certifies a row (D145). 6: local rebuilds search what moved more than θε/8, not θε/16 (D148).
+const REVISION: u32 = 6;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {
