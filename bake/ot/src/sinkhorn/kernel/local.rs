@@ -148,7 +148,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
         .into_par_iter()
         .map(|i| union(&old.col[old.row_ptr[i]..old.row_ptr[i + 1]], new_cols(i)).count())
         .collect();
-    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, &lens, new_cols);
+    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, lens, new_cols);
     let Kernel {
         row_ptr, col, k, ..
     } = kern;

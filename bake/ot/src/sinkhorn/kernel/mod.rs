@@ -130,7 +130,7 @@ pub(super) fn build<const D: usize>(
         .into_par_iter()
         .map(|i| union(&col[row_ptr[i]..row_ptr[i + 1]], best(i)).count())
         .collect();
-    merge_lists_in_place(&mut row_ptr, &mut col, &lens, best);
+    merge_lists_in_place(&mut row_ptr, &mut col, lens, best);
     let mut k = vec![0f32; col.len()];
     map_lists_mut(&row_ptr, &mut k, |i, vals| {
         for (v, &j) in vals.iter_mut().zip(&col[row_ptr[i]..row_ptr[i + 1]]) {

@@ -115,13 +115,13 @@ pub(super) fn union<'a>(
 pub(super) fn merge_lists_in_place<'a, I>(
     ptr: &mut Vec<usize>,
     idx: &mut Vec<u32>,
-    lens: &[usize],
+    lens: Vec<usize>,
     new: impl Fn(usize) -> I,
 ) where
     I: DoubleEndedIterator<Item = u32> + 'a,
 {
     let m = lens.len();
-    let new_ptr = pointers(lens.to_vec());
+    let new_ptr = pointers(lens);
     let total = new_ptr[m];
     debug_assert!(total >= idx.len());
     idx.reserve_exact(total - idx.len());

@@ -267,8 +267,9 @@ fn lists_merge_in_place_into_their_unions() {
         })
         .collect();
     let lens: Vec<usize> = want.iter().map(Vec::len).collect();
-    sparse::merge_lists_in_place(&mut ptr, &mut idx, &lens, |i| adds[i].iter().copied());
-    assert_eq!(idx.len(), lens.iter().sum::<usize>());
+    let total = lens.iter().sum::<usize>();
+    sparse::merge_lists_in_place(&mut ptr, &mut idx, lens, |i| adds[i].iter().copied());
+    assert_eq!(idx.len(), total);
     for i in 0..m {
         assert_eq!(&idx[ptr[i]..ptr[i + 1]], &want[i][..], "list {i}");
     }
