@@ -54,7 +54,8 @@ const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [64.0, 80.0, 100.0, 224.0];
 /// glibc raises that threshold each time a mapped block is freed, up to 32 MiB; from then on the
 /// solvers' transient arrays of a few MiB (per-chunk search lists, row pointers, potentials) come
 /// from the heap, whose freed memory stays resident. Measured peak resident memory (D147): 250K 3D
-/// cow 358 → 245 MB, 250K 2D duck 352 → 285 MB, the same CPU time. A library does not change its
+/// cow 358 → 248 MB, 250K 2D duck 345 → 284 MB, 1M cow 1.33 → 1.03 GB, for 0–5% more user time
+/// (mapping and unmapping; measured on a shared machine). A library does not change its
 /// host's allocator on its own: the binaries call this once at start; the estimates above hold
 /// either way. Returns whether it applied (glibc on Linux only).
 pub fn keep_large_blocks_mapped() -> bool {
