@@ -4,8 +4,8 @@
 use super::super::hierarchy::Hierarchy;
 use super::bounds::bounds;
 use super::search::search_some;
-use super::sparse::{map_lists_mut, merge_lists_in_place, union};
-use super::{Kernel, K_MIN};
+use super::sparse::merge_lists_in_place;
+use super::Kernel;
 use crate::cost;
 use crate::Wrap;
 use rayon::prelude::*;
@@ -143,25 +143,10 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     for i in 0..m {
         starts[i + 1] += starts[i];
     }
-    let new_cols = |i: usize| extra[starts[i]..starts[i + 1]].iter().map(|e| e.1);
-    let lens: Vec<usize> = (0..m)
-        .into_par_iter()
-        .map(|i| union(&old.col[old.row_ptr[i]..old.row_ptr[i + 1]], new_cols(i)).count())
-        .collect();
-    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, lens, new_cols);
-    let Kernel {
-        row_ptr, col, k, ..
-    } = kern;
-    k.resize(col.len(), 0.0);
-    map_lists_mut(row_ptr, k, |i, vals| {
-        let r = row_ptr[i]..row_ptr[i + 1];
-        for (v, &j) in vals.iter_mut().zip(&col[r]) {
-            let ju = j as usize;
-            let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
-            *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
-        }
-        0.0
+    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, |i| {
+        extra[starts[i]..starts[i + 1]].iter().map(|e| e.1)
     });
     kern.f = f;
+    kern.set_values(xs, ys, g, eps, wrap);
     Some(Local::Built(rows.len(), cols.len()))
 }

@@ -40,12 +40,11 @@ pub(super) use local::{rebuild_local, Local, LocalLimits};
 pub(super) use search::search;
 pub(in crate::sinkhorn) use sparse::{map_lists_mut, sort_lists_by_value};
 
-use super::hierarchy::Hierarchy;
+use super::hierarchy::{Hierarchy, Level};
 use crate::cost;
 use crate::Wrap;
-use rayon::prelude::*;
 use search::search_all;
-use sparse::{merge_lists_in_place, transpose, union};
+use sparse::{merge_lists_in_place, transpose};
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
 const CHUNK: usize = 1024;
@@ -77,6 +76,29 @@ impl Kernel {
     /// Bytes of the kernel's arrays.
     pub fn bytes(&self) -> usize {
         self.row_ptr.len() * 8 + self.col.len() * 8 + self.f.len() * 8
+    }
+
+    /// Every entry's value K_ij = exp((f_i + g_j − C_ij)/ε) for the kernel's pattern and row
+    /// offsets `f`, into `k` (allocated here when the pattern is new, resized when it grew).
+    fn set_values<const D: usize>(
+        &mut self,
+        xs: &Level<D>,
+        ys: &Level<D>,
+        g: &[f64],
+        eps: f64,
+        wrap: Wrap,
+    ) {
+        let Kernel {
+            row_ptr, col, k, f, ..
+        } = self;
+        k.resize(col.len(), 0.0);
+        map_lists_mut(row_ptr, k, |i, vals| {
+            for (v, &j) in vals.iter_mut().zip(&col[row_ptr[i]..row_ptr[i + 1]]) {
+                let ju = j as usize;
+                let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
+                *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
+            }
+        });
     }
 
     /// The column form of the pattern: (column pointers, rows ascending in each column).
@@ -125,28 +147,18 @@ pub(super) fn build<const D: usize>(
     // one new array: the pattern's transient copies were the whole build's peak memory.
     let (mut row_ptr, mut col) = transpose(&cptr, &cidx, xs.len());
     drop((cptr, cidx));
-    let best = |i: usize| ridx[rptr[i]..rptr[i + 1]].iter().copied();
-    let lens: Vec<usize> = (0..xs.len())
-        .into_par_iter()
-        .map(|i| union(&col[row_ptr[i]..row_ptr[i + 1]], best(i)).count())
-        .collect();
-    merge_lists_in_place(&mut row_ptr, &mut col, lens, best);
-    let mut k = vec![0f32; col.len()];
-    map_lists_mut(&row_ptr, &mut k, |i, vals| {
-        for (v, &j) in vals.iter_mut().zip(&col[row_ptr[i]..row_ptr[i + 1]]) {
-            let ju = j as usize;
-            let cost = cost::sq(wrap, &xs.pos[i], &ys.pos[ju]);
-            *v = ((f[i] + g[ju] - cost) / eps).exp().clamp(K_MIN, 1.0) as f32;
-        }
-        0.0
+    merge_lists_in_place(&mut row_ptr, &mut col, |i| {
+        ridx[rptr[i]..rptr[i + 1]].iter().copied()
     });
-    Some(Kernel {
+    let mut kern = Kernel {
         row_ptr,
         col,
-        k,
+        k: Vec::new(),
         cols: ys.len(),
         f,
-    })
+    };
+    kern.set_values(xs, ys, g, eps, wrap);
+    Some(kern)
 }
 
 #[cfg(test)]

@@ -20,10 +20,11 @@ fn pointers(lens: Vec<usize>) -> Vec<usize> {
 }
 
 /// `f(i, values of list i)` for every list of (`ptr`, `vals`), in place, in parallel over fixed
-/// chunks of lists; returns what `f` returned per list, in order.
-pub(in crate::sinkhorn) fn map_lists_mut<F>(ptr: &[usize], vals: &mut [f32], f: F) -> Vec<f64>
+/// chunks of lists; returns what `f` returned per list, in order (nothing is allocated for `()`).
+pub(in crate::sinkhorn) fn map_lists_mut<R, F>(ptr: &[usize], vals: &mut [f32], f: F) -> Vec<R>
 where
-    F: Fn(usize, &mut [f32]) -> f64 + Sync,
+    R: Send,
+    F: Fn(usize, &mut [f32]) -> R + Sync,
 {
     let m = ptr.len() - 1;
     let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
@@ -34,7 +35,7 @@ where
         rest = r;
         parts.push((a, b, p));
     }
-    let out: Vec<Vec<f64>> = parts
+    let out: Vec<Vec<R>> = parts
         .into_par_iter()
         .map(|(a, b, p)| {
             let base = ptr[a];
@@ -43,7 +44,7 @@ where
                 .collect()
         })
         .collect();
-    out.concat()
+    out.into_iter().flatten().collect()
 }
 
 /// Sorts every list of (`ptr`, `idx`, `vals`) by ascending value (then entry), in place, in
@@ -106,20 +107,23 @@ pub(super) fn union<'a>(
 }
 
 /// Merges into every list of (`ptr`, `idx`) the sorted entries `new(i)`, in place: list i becomes
-/// the sorted union of its entries and `new(i)`, `lens[i]` long (that union's size). The array
-/// grows once, by exactly what the lists gain (a large allocation grows by remapping its pages,
-/// without a copy), and the lists are merged from the last to the first, each from its end, so
-/// that no entry is overwritten before it is read: a list only moves towards the end, and a list
-/// ends, after the merge, no earlier than it did before. Sequential: one pass over the entries
-/// from the first list that gains any.
+/// the sorted union of its entries and `new(i)`. The lists' new lengths are counted first (in
+/// parallel); the array then grows once, by exactly what the lists gain (a large allocation grows
+/// by remapping its pages, without a copy), and the lists are merged from the last to the first,
+/// each from its end, so that no entry is overwritten before it is read: a list only moves towards
+/// the end, and a list ends, after the merge, no earlier than it did before. Sequential: one pass
+/// over the entries from the first list that gains any.
 pub(super) fn merge_lists_in_place<'a, I>(
     ptr: &mut Vec<usize>,
     idx: &mut Vec<u32>,
-    lens: Vec<usize>,
-    new: impl Fn(usize) -> I,
+    new: impl Fn(usize) -> I + Sync,
 ) where
     I: DoubleEndedIterator<Item = u32> + 'a,
 {
+    let lens: Vec<usize> = (0..ptr.len() - 1)
+        .into_par_iter()
+        .map(|i| union(&idx[ptr[i]..ptr[i + 1]], new(i)).count())
+        .collect();
     let m = lens.len();
     let new_ptr = pointers(lens);
     let total = new_ptr[m];

@@ -266,9 +266,8 @@ fn lists_merge_in_place_into_their_unions() {
             u
         })
         .collect();
-    let lens: Vec<usize> = want.iter().map(Vec::len).collect();
-    let total = lens.iter().sum::<usize>();
-    sparse::merge_lists_in_place(&mut ptr, &mut idx, lens, |i| adds[i].iter().copied());
+    let total = want.iter().map(Vec::len).sum::<usize>();
+    sparse::merge_lists_in_place(&mut ptr, &mut idx, |i| adds[i].iter().copied());
     assert_eq!(idx.len(), total);
     for i in 0..m {
         assert_eq!(&idx[ptr[i]..ptr[i + 1]], &want[i][..], "list {i}");
