@@ -15,6 +15,8 @@ use rayon::prelude::*;
 pub(in crate::sinkhorn) struct Bounds<const D: usize> {
     pub beta: Vec<Vec<[f64; D]>>,
     pub alpha: Vec<Vec<f64>>,
+    /// Each cell's descendants on the search level, a range (cells are in Morton order).
+    pub desc: Vec<Vec<(u32, u32)>>,
 }
 
 pub(in crate::sinkhorn) fn bounds<const D: usize>(
@@ -30,13 +32,15 @@ pub(in crate::sinkhorn) fn bounds<const D: usize>(
         .collect();
     let mut beta: Vec<Vec<[f64; D]>> = vec![Vec::new(); level];
     let mut alpha: Vec<Vec<f64>> = vec![Vec::new(); level];
-    // Descendant ranges (into the search level) of the cells of the level below the current one.
-    let mut below: Option<Vec<(u32, u32)>> = None;
+    // Descendant ranges (into the search level) of every cell, filled from the level above the
+    // search level up.
+    let mut desc: Vec<Vec<(u32, u32)>> = vec![Vec::new(); level];
     for l in (0..level).rev() {
         let child = &h.levels[l].child;
         let m = h.levels[l].len();
+        let below = desc.get(l + 1).filter(|_| l + 1 < level);
         let ranges: Vec<(u32, u32)> = (0..m)
-            .map(|c| match &below {
+            .map(|c| match below {
                 None => (child[c], child[c + 1]),
                 Some(b) => (b[child[c] as usize].0, b[child[c + 1] as usize - 1].1),
             })
@@ -49,9 +53,9 @@ pub(in crate::sinkhorn) fn bounds<const D: usize>(
             .collect();
         beta[l] = fit.iter().map(|f| f.0).collect();
         alpha[l] = fit.iter().map(|f| f.1).collect();
-        below = Some(ranges);
+        desc[l] = ranges;
     }
-    Bounds { beta, alpha }
+    Bounds { beta, alpha, desc }
 }
 
 /// Least-squares slope β of h over points y (0 where the points span no direction) and

@@ -139,9 +139,12 @@ pub(super) fn build<const D: usize>(
     // column minimum min_i' (C_i'j − f_i') is at least g_j, and a pair within θε of its row's best
     // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too. A search with margin 0 finds
     // only the minimizers, and halves the cost of a build.
+    let t0 = std::time::Instant::now();
     let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap, max_pairs)?;
+    let t1 = std::time::Instant::now();
     // Column test against f.
     let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap, max_pairs)?;
+    let t2 = std::time::Instant::now();
     // Column-test pairs as rows: the kernel's pattern. Every row-test pair is among them (see
     // above) but for rounding; any that is not is merged in, in place. Then the values, into the
     // one new array: the pattern's transient copies were the whole build's peak memory.
@@ -157,7 +160,18 @@ pub(super) fn build<const D: usize>(
         cols: ys.len(),
         f,
     };
+    let t3 = std::time::Instant::now();
     kern.set_values(xs, ys, g, eps, wrap);
+    if std::env::var_os("OTBAKE_TRACE").is_some() {
+        let s = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64();
+        eprintln!(
+            "  build: row minima {:.2}s, column tests {:.2}s, pattern {:.2}s, values {:.2}s",
+            s(t0, t1),
+            s(t1, t2),
+            s(t2, t3),
+            t3.elapsed().as_secs_f64()
+        );
+    }
     Some(kern)
 }
 

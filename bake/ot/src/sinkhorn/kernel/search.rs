@@ -9,6 +9,13 @@ use crate::Wrap;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// A cell with at most this many descendants on the search level has them evaluated directly
+/// instead of being searched further: near the bottom of the hierarchy cells hold one to eight
+/// points, and bounding every child cost more than evaluating the points (a column search of the
+/// 250K cow's final build bounded 1149 children and expanded 205 cells to find ~77 pairs; with
+/// buckets of 32 it bounds 612, expands 77 and evaluates 538 points, 26% less time; D151).
+const BUCKET: u32 = 32;
+
 #[allow(clippy::too_many_arguments)]
 /// All cells j of `h` at `level` with C(x, y_j) − pot_j ≤ min + `margin`, appended to `out` as
 /// (j, C − pot_j) in search order; returns the minimum. With `fixed = Some(t)` the threshold is `t`
@@ -58,6 +65,17 @@ pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
             let r = cost::sq(wrap, x, &h.levels[l].pos[c as usize]) - pot(c as usize);
             if r <= best + margin {
                 keep(out, &mut best, c, r);
+            }
+            continue;
+        }
+        let (da, db) = bnd.desc[l][c as usize];
+        if db - da <= BUCKET {
+            let pts = &h.levels[level];
+            for j in da..db {
+                let r = cost::sq(wrap, x, &pts.pos[j as usize]) - pot(j as usize);
+                if r <= best + margin {
+                    keep(out, &mut best, j, r);
+                }
             }
             continue;
         }
