@@ -139,6 +139,45 @@ struct Label {
     settled: bool,
 }
 
+/// The columns' labels of one path search, by column, and the columns it touched (what a clear
+/// resets). An array and not a map: the auction's endgame paths settle tens of thousands of
+/// columns each, and hashing them was most of a completion's time.
+struct Labels {
+    at: Vec<Label>,
+    touched: Vec<u32>,
+}
+
+const UNREACHED: Label = Label {
+    dist: f64::INFINITY,
+    pred: NONE,
+    settled: false,
+};
+
+impl Labels {
+    fn new(cols: usize) -> Self {
+        Self {
+            at: vec![UNREACHED; cols],
+            touched: Vec::new(),
+        }
+    }
+
+    fn clear(&mut self) {
+        for &j in &self.touched {
+            self.at[j as usize] = UNREACHED;
+        }
+        self.touched.clear();
+    }
+
+    /// Column j's label, recorded as touched the first time.
+    fn get_mut(&mut self, j: u32) -> &mut Label {
+        let l = &mut self.at[j as usize];
+        if l.pred == NONE && !l.settled && l.dist == f64::INFINITY {
+            self.touched.push(j);
+        }
+        l
+    }
+}
+
 /// A heap entry: smallest distance first, then the lower column.
 #[derive(Clone, Copy, PartialEq)]
 struct Entry(f64, u32);
@@ -180,20 +219,19 @@ impl<const D: usize> Completion<'_, D> {
             found: Vec::new(),
             done: Completed::default(),
         };
+        let mut labels = Labels::new(ys.len());
         for &s in free {
             if xs[s] != NONE {
                 continue;
             }
             let mut margin = self.margin;
             let mut widened = false;
-            let (end, dist, labels) = loop {
-                let mut labels = HashMap::new();
+            let (end, dist) = loop {
+                labels.clear();
                 match search.path(s, margin, xs, ys, v, &mut labels) {
                     // A path no longer than the margin is a shortest one: every edge left out
                     // is longer than the margin (with tight duals edges are not negative).
-                    Path::Found(end, dist) if dist <= margin || widened => {
-                        break (end, dist, labels)
-                    }
+                    Path::Found(end, dist) if dist <= margin || widened => break (end, dist),
                     // Otherwise once more with every edge up to the path's length.
                     Path::Found(_, dist) => {
                         margin = dist;
@@ -206,15 +244,15 @@ impl<const D: usize> Completion<'_, D> {
             search.done.widest = search.done.widest.max(margin / self.margin);
             // Lower the settled columns' duals so the path is tight (never raise one: the bounds
             // must stay lower bounds), then flip the path.
-            for (&j, l) in &labels {
+            for &j in &labels.touched {
+                let l = labels.at[j as usize];
                 if l.settled && l.dist < dist {
-                    let j = j as usize;
-                    v[j] -= dist - l.dist;
+                    v[j as usize] -= dist - l.dist;
                 }
             }
             let mut j = end;
             loop {
-                let i = labels[&j].pred;
+                let i = labels.at[j as usize].pred;
                 ys[j as usize] = i;
                 let prev = xs[i as usize];
                 xs[i as usize] = j;
@@ -462,7 +500,7 @@ impl<'c, const D: usize> Searcher<'_, 'c, D> {
         xs: &[u32],
         ys: &[u32],
         v: &[f64],
-        labels: &mut HashMap<u32, Label>,
+        labels: &mut Labels,
     ) -> Path {
         let mut heap = BinaryHeap::new();
         let Some(first) = self.take_edges(s as u32, None, margin, v) else {
@@ -474,19 +512,16 @@ impl<'c, const D: usize> Searcher<'_, 'c, D> {
             .fold(f64::INFINITY, f64::min);
         for &j in first.iter() {
             let dist = self.c.value(s, j as usize, v) - base;
-            labels.insert(
-                j,
-                Label {
-                    dist,
-                    pred: s as u32,
-                    settled: false,
-                },
-            );
+            *labels.get_mut(j) = Label {
+                dist,
+                pred: s as u32,
+                settled: false,
+            };
             heap.push(Entry(dist, j));
         }
         self.put_back(s as u32, first);
         while let Some(Entry(dist, j)) = heap.pop() {
-            let label = labels.get_mut(&j).expect("a pushed column has a label");
+            let label = labels.get_mut(j);
             if label.settled || dist > label.dist {
                 continue;
             }
@@ -505,11 +540,7 @@ impl<'c, const D: usize> Searcher<'_, 'c, D> {
             };
             for &j2 in cols.iter() {
                 let nd = dist + self.c.value(i as usize, j2 as usize, v) - h;
-                let l = labels.entry(j2).or_insert(Label {
-                    dist: f64::INFINITY,
-                    pred: i,
-                    settled: false,
-                });
+                let l = labels.get_mut(j2);
                 if !l.settled && nd < l.dist {
                     l.dist = nd;
                     l.pred = i;
