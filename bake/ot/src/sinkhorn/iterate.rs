@@ -77,9 +77,10 @@ const OVER_RELAXATION: f64 = 1.8;
 
 /// ω of the stages on cells. They are the slow ones: their error falls about as 1/t for hundreds
 /// of iterations (the 1M cow's last cell stage took 298 at 1.8, a third of the solve's CPU time),
-/// the regime where the best ω is nearer 2; 1.9 took that stage to 64 iterations and its level-6
-/// stage from 132 to 78 (D150). On the points 1.9 was no better or worse (250K cow 101 → 107
-/// iterations, 250K duck 22 → 39), so the final stage keeps [`OVER_RELAXATION`].
+/// the regime where the best ω is nearer 2; 1.9 took that stage to 64 iterations (78 with the
+/// probes of [`PROBE_EVERY`]) and its level-6 stage from 132 to 78 (D150). On the points 1.9 was
+/// no better or worse (250K cow 101 → 107 iterations, 250K duck 22 → 39), so the final stage
+/// keeps [`OVER_RELAXATION`].
 const OVER_RELAXATION_CELLS: f64 = 1.9;
 
 /// Every `PROBE_EVERY`-th over-relaxed iteration is a plain one: a stage can only end on a plain
