@@ -218,7 +218,7 @@ pub(super) fn iterate<const D: usize>(
     let mut plain = false;
     let mut prev_plain = true;
     let mut lowest = f64::INFINITY;
-    let relaxed = if st.level + 1 < hs.levels.len() {
+    let relaxed = if st.level < hs.point_level() {
         OVER_RELAXATION_CELLS
     } else {
         OVER_RELAXATION

@@ -61,6 +61,8 @@ pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
             continue;
         }
         let l = l as usize;
+        // Only the root, when the search level is the root's (cells below are evaluated by their
+        // parents).
         if l == level {
             let r = cost::sq(wrap, x, &h.levels[l].pos[c as usize]) - pot(c as usize);
             if r <= best + margin {
@@ -68,8 +70,10 @@ pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
             }
             continue;
         }
+        // A cell just above the search level (its children are the candidates themselves, as
+        // many as coincide) or with few descendants: its candidates are evaluated directly.
         let (da, db) = bnd.desc[l][c as usize];
-        if db - da <= BUCKET {
+        if l + 1 == level || db - da <= BUCKET {
             let pts = &h.levels[level];
             for j in da..db {
                 let r = cost::sq(wrap, x, &pts.pos[j as usize]) - pot(j as usize);
@@ -82,33 +86,20 @@ pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
         let lvl = &h.levels[l];
         let (a, b) = (lvl.child[c as usize], lvl.child[c as usize + 1]);
         let next = &h.levels[l + 1];
-        if l + 1 == level && (b - a) as usize > kids.len() {
-            // Many leaves (coincident points under one finest cell): evaluate them directly.
-            for j in a..b {
-                let r = cost::sq(wrap, x, &next.pos[j as usize]) - pot(j as usize);
-                if r <= best + margin {
-                    keep(out, &mut best, j, r);
-                }
-            }
-            continue;
-        }
         let mut m = 0;
         for j in a..b {
             let ju = j as usize;
-            let bound = if l + 1 == level {
-                cost::sq(wrap, x, &next.pos[ju]) - pot(ju)
-            } else {
-                images.min_of(|p, p2| {
-                    cell_bound(
-                        p,
-                        p2,
-                        &bnd.beta[l + 1][ju],
-                        bnd.alpha[l + 1][ju],
-                        &next.lo[ju],
-                        &next.hi[ju],
-                    )
-                })
-            };
+            // A cell above the search level (the level below is never the search level here).
+            let bound = images.min_of(|p, p2| {
+                cell_bound(
+                    p,
+                    p2,
+                    &bnd.beta[l + 1][ju],
+                    bnd.alpha[l + 1][ju],
+                    &next.lo[ju],
+                    &next.hi[ju],
+                )
+            });
             if bound <= best + margin {
                 kids[m] = (bound, j);
                 m += 1;
