@@ -60,7 +60,7 @@ pub(in crate::sinkhorn) fn bounds<const D: usize>(
 
 /// Least-squares slope β of h over points y (0 where the points span no direction) and
 /// α = min(h − β·y).
-fn affine_minorant<const D: usize>(y: &[[f64; D]], h: &[f64]) -> ([f64; D], f64) {
+pub(super) fn affine_minorant<const D: usize>(y: &[[f64; D]], h: &[f64]) -> ([f64; D], f64) {
     let n = y.len() as f64;
     let mut my = [0.0; D];
     let mut mh = 0.0;

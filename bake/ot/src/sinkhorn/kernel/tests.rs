@@ -273,3 +273,60 @@ fn lists_merge_in_place_into_their_unions() {
         assert_eq!(&idx[ptr[i]..ptr[i + 1]], &want[i][..], "list {i}");
     }
 }
+
+/// The grouped column search ([`search::search_all`] with a margin) keeps exactly the cells a dense
+/// scan keeps, with the same minima, in 3D on the cube and on the torus, at the point level and
+/// at a cell level, for a potential with a steep slope and curvature (what the groups' fitted
+/// plane must absorb) and with noise (what it cannot).
+#[test]
+fn grouped_search_equals_dense_scan_in_3d() {
+    let cloud = |seed: f64, n: usize| -> Vec<[f64; 3]> {
+        (0..n)
+            .map(|i| {
+                let t = i as f64 + seed;
+                [
+                    (t * 0.754_877_666).fract(),
+                    (t * 0.569_840_29).fract() * 0.7,
+                    (t * 0.362_523_12).fract().powi(2),
+                ]
+            })
+            .collect()
+    };
+    let (a, b) = (cloud(0.3, 1500), cloud(0.7, 1300));
+    let grid = Grid::new(&a, &b);
+    let (hs, ht) = (Hierarchy::new(&a, &grid, 4), Hierarchy::new(&b, &grid, 4));
+    for wrap in [Wrap::Clamp, Wrap::Periodic] {
+        for level in [3, hs.point_level()] {
+            let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
+            let pot: Vec<f64> = xs
+                .pos
+                .iter()
+                .enumerate()
+                .map(|(i, x)| {
+                    1.4 * x[0] * x[0] - 0.8 * x[1] * x[2]
+                        + 0.5 * x[2]
+                        + 2e-3 * ((i as f64 * 12.9898).sin() * 43758.5453).fract()
+                })
+                .collect();
+            for margin in [1e-3, 2e-2] {
+                let (ptr, idx, mins) =
+                    search::search_all(ys, &hs, level, &pot, margin, wrap, usize::MAX).unwrap();
+                for j in 0..ys.len() {
+                    let vals: Vec<f64> = (0..xs.len())
+                        .map(|i| cost::sq(wrap, &ys.pos[j], &xs.pos[i]) - pot[i])
+                        .collect();
+                    let min = vals.iter().copied().fold(f64::INFINITY, f64::min);
+                    let want: Vec<u32> = (0..xs.len() as u32)
+                        .filter(|&i| vals[i as usize] <= min + margin)
+                        .collect();
+                    assert_eq!(mins[j], min, "{wrap:?} level {level} query {j}");
+                    assert_eq!(
+                        &idx[ptr[j]..ptr[j + 1]],
+                        &want[..],
+                        "{wrap:?} level {level} margin {margin} query {j}"
+                    );
+                }
+            }
+        }
+    }
+}
