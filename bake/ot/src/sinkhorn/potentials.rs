@@ -69,25 +69,24 @@ pub(super) fn extrapolate<const D: usize>(
 ) -> Vec<f64> {
     let ys = &ht.levels[to];
     let (xs, a) = (&hs.levels[from].pos, &hs.levels[from].mass);
+    // ε·ln a_i once per row, not twice per pair (the logarithms were a third of this pass).
+    let eps_ln_a: Vec<f64> = a.par_iter().map(|&m| eps * m.ln()).collect();
     (0..ys.len())
         .into_par_iter()
-        .map(|j| {
+        .map_init(Vec::new, |terms: &mut Vec<f64>, j| {
             let mut anc = j;
             for l in (from + 1..=to).rev() {
                 anc = ht.levels[l].parent[anc] as usize;
             }
             let rows = &row[col_ptr[anc]..col_ptr[anc + 1]];
             let y = &ys.pos[j];
-            let mut m = f64::NEG_INFINITY;
-            for &i in rows {
+            terms.clear();
+            terms.extend(rows.iter().map(|&i| {
                 let i = i as usize;
-                m = m.max(f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln());
-            }
-            let mut s = 0.0;
-            for &i in rows {
-                let i = i as usize;
-                s += ((f[i] - sq(wrap, &xs[i], y) + eps * a[i].ln() - m) / eps).exp();
-            }
+                f[i] - sq(wrap, &xs[i], y) + eps_ln_a[i]
+            }));
+            let m = terms.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let s: f64 = terms.iter().map(|&t| ((t - m) / eps).exp()).sum();
             -(m + eps * s.ln())
         })
         .collect()

@@ -89,8 +89,9 @@ impl Default for SinkhornSettings {
 /// shortest paths instead of dense ones (D144). 5: the auction in one phase from ε/4 in every
 /// dimension, a phase whose bids stall parked for the paths, which read the support where it
 /// certifies a row (D145). 6: local rebuilds search what moved more than θε/8, not θε/16 (D148).
-/// 7: ω = 1.9 on the cell stages, a plain probe every 10 over-relaxed iterations (D150).
-const REVISION: u32 = 7;
+/// 7: ω = 1.9 on the cell stages, a plain probe every 10 over-relaxed iterations (D150). 8: kernel
+/// entries' exponentials in `f32` (the 1M cow's map moved among near-ties, D154).
+const REVISION: u32 = 8;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

@@ -48,10 +48,14 @@ pub(super) fn run<const D: usize>(
                 .max(state.as_ref().map_or(0, |s| s.level))
         };
         // Target potential on the new level.
+        let tp = std::time::Instant::now();
         let g = match &state {
             None => vec![0.0; ht.levels[level].len()],
             Some(st) => next_potential(plan, st, level, eps, wrap),
         };
+        if std::env::var_os("OTBAKE_TRACE").is_some() && state.is_some() {
+            eprintln!("  next potential {:.2}s", tp.elapsed().as_secs_f64());
+        }
         // The previous stage's kernel is not needed any more: free it before building the next.
         drop(state.take());
         let tk = std::time::Instant::now();
