@@ -291,7 +291,6 @@ pub(super) fn search_some<const D: usize>(
 /// and a leaf that survives is evaluated for every query it can hold a pair of (each query checks
 /// its own bound first). The walk, not the evaluations, was most of a whole build (D152).
 const GROUP: usize = 8;
-const GROUP_BUCKET: u32 = 32;
 
 /// The per-axis image shifts besides 0 that can hold the nearest image (C on the torus is the
 /// minimum over the shifts of x by −1, 0, +1 per axis; every point is in [0, 1)).
@@ -360,9 +359,10 @@ fn group_bound<const D: usize>(
 ///
 /// The queries' minima differ by far more than the margin across a group (they follow the
 /// potential's slope), so the walk compares bounds of C − pot − b·x with the largest
-/// min_q − b·x_q, for a slope b fitted to the minima found at the first leaf; the walk then starts
-/// over with it. The test stays exact for any b: a cell is pruned only if for every query q
-/// and descendant j, C_qj − pot_j − b·x_q > min_q − b·x_q + margin.
+/// min_q − b·x_q, for a slope b fitted to upper bounds of the minima: the values of the `hints`
+/// (the previous group's minimizers) or, without hints, the minima found at the first leaf, the
+/// walk then starting over with it. The test stays exact for any b: a cell is pruned only if for
+/// every query q and descendant j, C_qj − pot_j − b·x_q > min_q − b·x_q + margin.
 #[allow(clippy::too_many_arguments)]
 fn search_group<const D: usize>(
     h: &Hierarchy<D>,
@@ -448,7 +448,7 @@ fn search_group<const D: usize>(
             for q in 0..g {
                 eval(q, c..c + 1, &mut out[q], &mut best[q]);
             }
-        } else if l + 1 == level || bnd.desc[l][cu].1 - bnd.desc[l][cu].0 <= GROUP_BUCKET {
+        } else if l + 1 == level || bnd.desc[l][cu].1 - bnd.desc[l][cu].0 <= BUCKET {
             let (da, db) = bnd.desc[l][cu];
             let lvl = &h.levels[l];
             let (beta, alpha) = (&bnd.beta[l][cu], bnd.alpha[l][cu]);
