@@ -90,8 +90,10 @@ impl Default for SinkhornSettings {
 /// dimension, a phase whose bids stall parked for the paths, which read the support where it
 /// certifies a row (D145). 6: local rebuilds search what moved more than θε/8, not θε/16 (D148).
 /// 7: ω = 1.9 on the cell stages, a plain probe every 10 over-relaxed iterations (D150). 8: kernel
-/// entries' exponentials in `f32` (the 1M cow's map moved among near-ties, D154).
-const REVISION: u32 = 8;
+/// entries' exponentials in `f32` (the 1M cow's map moved among near-ties, D154). 9: a row's
+/// K·v in four partial sums, the over-relaxation's power as exp(ω' ln x) (D155; the measured maps
+/// kept every byte, but a near-tie elsewhere may not).
+const REVISION: u32 = 9;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

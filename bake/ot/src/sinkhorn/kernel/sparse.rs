@@ -64,23 +64,42 @@ pub(in crate::sinkhorn) fn sort_lists_by_value(ptr: &[usize], idx: &mut [u32], v
     }
     parts.into_par_iter().for_each(|(a, b, pi, pv)| {
         let base = ptr[a];
-        let mut pairs: Vec<(f32, u32)> = Vec::new();
+        // (value, entry) packed in one integer whose order is theirs: integer keys sort several
+        // times faster than a comparison of the pair (this sort is one pass over every pair).
+        let mut keys: Vec<u64> = Vec::new();
         for i in a..b {
             let r = ptr[i] - base..ptr[i + 1] - base;
-            pairs.clear();
-            pairs.extend(
+            keys.clear();
+            keys.extend(
                 pv[r.clone()]
                     .iter()
-                    .copied()
-                    .zip(pi[r.clone()].iter().copied()),
+                    .zip(&pi[r.clone()])
+                    .map(|(&v, &j)| (u64::from(ordered_bits(v)) << 32) | u64::from(j)),
             );
-            pairs.sort_unstable_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
-            for ((v, j), &(pv_, pj)) in pv[r.clone()].iter_mut().zip(&mut pi[r]).zip(&pairs) {
-                *v = pv_;
-                *j = pj;
+            keys.sort_unstable();
+            for ((v, j), &k) in pv[r.clone()].iter_mut().zip(&mut pi[r]).zip(&keys) {
+                *v = from_ordered_bits((k >> 32) as u32);
+                *j = k as u32;
             }
         }
     });
+}
+
+/// The bits of `x` as an unsigned integer whose order is `f32::total_cmp`'s.
+#[inline]
+fn ordered_bits(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// The inverse of [`ordered_bits`].
+#[inline]
+fn from_ordered_bits(k: u32) -> f32 {
+    f32::from_bits(if k >> 31 == 1 { k & 0x7fff_ffff } else { !k })
 }
 
 /// The sorted union of two sorted, duplicate-free lists.

@@ -330,3 +330,54 @@ fn grouped_search_equals_dense_scan_in_3d() {
         }
     }
 }
+
+/// Sorting lists by value gives `f32::total_cmp` order, ties by entry, for values of every sign,
+/// both zeros and the infinities, and keeps each value with its entry.
+#[test]
+fn lists_sort_by_value_in_total_order() {
+    let specials = [
+        0.0f32,
+        -0.0,
+        1.5,
+        -1.5,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        1e-40,
+        -1e-40,
+    ];
+    let mut ptr = vec![0usize];
+    let (mut idx, mut vals) = (Vec::new(), Vec::new());
+    for row in 0..40usize {
+        for e in 0..(row * 7) % 23 {
+            let h = ((row * 31 + e * 17) as f64 * 0.618_033_988_75).fract();
+            let v = if e % 5 == 0 {
+                specials[(row + e) % specials.len()]
+            } else {
+                ((h - 0.4) * 1e3) as f32
+            };
+            vals.push(v);
+            idx.push(((row * 13 + e * 7) % 11) as u32);
+        }
+        ptr.push(idx.len());
+    }
+    let (mut idx2, mut vals2) = (idx.clone(), vals.clone());
+    sort_lists_by_value(&ptr, &mut idx2, &mut vals2);
+    for i in 0..ptr.len() - 1 {
+        let r = ptr[i]..ptr[i + 1];
+        let mut want: Vec<(f32, u32)> = vals[r.clone()]
+            .iter()
+            .copied()
+            .zip(idx[r.clone()].iter().copied())
+            .collect();
+        want.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+        let got: Vec<(f32, u32)> = vals2[r.clone()]
+            .iter()
+            .copied()
+            .zip(idx2[r].iter().copied())
+            .collect();
+        assert_eq!(want.len(), got.len());
+        for (w, g) in want.iter().zip(&got) {
+            assert_eq!((w.0.to_bits(), w.1), (g.0.to_bits(), g.1), "row {i}");
+        }
+    }
+}
