@@ -434,14 +434,22 @@ fn sweep(
             .map(|(c, vc)| {
                 let mut far = 0f64;
                 let mut finite = true;
-                for (k, v) in vc.iter_mut().enumerate() {
-                    let j = c * CHUNK + k;
-                    let mut t = 0.0;
-                    for blk in blocks {
-                        if let Some(s) = j.checked_sub(blk.first).and_then(|o| blk.sums.get(o)) {
-                            t += s;
+                // The chunk's column sums, block by block in block order (each block adds the
+                // slice of its range that overlaps the chunk).
+                let (c0, c1) = (c * CHUNK, c * CHUNK + vc.len());
+                let mut t = [0.0f64; CHUNK];
+                for blk in blocks {
+                    let (lo, hi) = (c0.max(blk.first), c1.min(blk.first + blk.sums.len()));
+                    if lo < hi {
+                        let src = &blk.sums[lo - blk.first..hi - blk.first];
+                        for (acc, s) in t[lo - c0..hi - c0].iter_mut().zip(src) {
+                            *acc += s;
                         }
                     }
+                }
+                for (k, v) in vc.iter_mut().enumerate() {
+                    let j = c0 + k;
+                    let t = t[k];
                     *v = relax(*v, b[j] / t, omega);
                     finite &= v.is_finite();
                     let r = *v / b[j];
