@@ -185,6 +185,9 @@ where
     // The highest dual: bids only lower duals, so it is recomputed only after `complete`.
     let highest = |v: &[f64]| v.par_iter().copied().reduce(|| f64::NEG_INFINITY, f64::max);
     let mut v_hi = highest(v);
+    // Per row, an upper bound of its candidates' duals (∞: none yet), what lets its sorted scan
+    // stop early where the bound over all duals cannot: see [`best_two`].
+    let mut row_hi = vec![f64::INFINITY; rows];
     loop {
         phases += 1;
         // Free every row that violates ε-complementary slackness (all rows in the first phase).
@@ -203,7 +206,7 @@ where
                             if xr[i] == NONE {
                                 return true;
                             }
-                            let (u1, _, _, _) = best_two(graph, wr, vr, v_hi, i);
+                            let (u1, _, _, _) = best_two(graph, wr, vr, v_hi, i, None);
                             let mine = (graph.cost)(i, xr[i] as usize) - vr[xr[i] as usize];
                             mine > u1 + eps
                         })
@@ -233,7 +236,7 @@ where
             spent += 1;
             since += 1;
             bids += 1;
-            let (u1, j1, u2, _) = best_two(graph, &wider, v, v_hi, i);
+            let (u1, j1, u2, _) = best_two(graph, &wider, v, v_hi, i, Some(&mut row_hi[i]));
             let (certified, round) = wider
                 .get(i)
                 .map_or((graph.certified, 0), |(_, c, r)| (c, r + 1));
@@ -285,13 +288,21 @@ where
 
 /// Smallest and second-smallest reduced cost of row i over its candidates (its widened list if it
 /// has one): (u1, j1, u2, j2).
-/// `v_hi` is at least every dual (what lets a sorted row stop early).
+///
+/// `v_hi` is at least every dual, and `row_hi` (when given) at least every dual of the row's own
+/// candidates: what lets a sorted row stop early (every later candidate costs at least its pair
+/// cost less the bound). Duals only fall, so a bound once computed stays one; a row whose scan
+/// still read more than half of its candidates reads the rest too and sets its bound to their
+/// largest dual now. In the auction's endgame the prices around the last free rows have fallen
+/// far below the highest dual (free columns keep theirs), and with `v_hi` alone every bid there
+/// read nearly its whole row.
 fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     graph: &Graph<'_, C>,
     wider: &Wider,
     v: &[f64],
     v_hi: f64,
     i: usize,
+    row_hi: Option<&mut f64>,
 ) -> (f64, usize, f64, usize) {
     if let Some((Some(cols), certified, _)) = wider.get(i) {
         let (u1, j1, u2, j2) = two_smallest(cols.iter().map(|&j| {
@@ -306,12 +317,15 @@ fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
     let cols = &graph.col[r.clone()];
     match graph.pair_cost {
         Some(pc) if graph.sorted => {
+            let hi = row_hi.as_deref().map_or(v_hi, |&h| h.min(v_hi));
             let (mut u1, mut j1) = (f64::INFINITY, usize::MAX);
             let (mut u2, mut j2) = (f64::INFINITY, usize::MAX);
-            for (&j, &c) in cols.iter().zip(&pc[r]) {
+            let mut read = cols.len();
+            for (k, (&j, &c)) in cols.iter().zip(&pc[r]).enumerate() {
                 let c = f64::from(c);
-                // Every later candidate costs at least c − v_hi.
-                if c - v_hi >= u2 {
+                // Every later candidate costs at least c − hi.
+                if c - hi >= u2 {
+                    read = k;
                     break;
                 }
                 let (j, h) = (j as usize, c - v[j as usize]);
@@ -323,6 +337,14 @@ fn best_two<C: Fn(usize, usize) -> f64 + Sync>(
                 } else if h < u2 {
                     u2 = h;
                     j2 = j;
+                }
+            }
+            if let Some(bound) = row_hi {
+                if 2 * read > cols.len() {
+                    *bound = cols
+                        .iter()
+                        .map(|&j| v[j as usize])
+                        .fold(f64::NEG_INFINITY, f64::max);
                 }
             }
             (u1, j1, u2, j2)
@@ -437,6 +459,56 @@ mod tests {
             permute(p, k + 1, f);
             p.swap(k, i);
         }
+    }
+
+    /// A sorted row's early stop (against the highest dual and the row's own bound) reads less but
+    /// bids exactly as a full scan: the same bids, matching and duals on a sparse geometric
+    /// problem with a long endgame (the rows' 10 nearest columns, starting from zero duals).
+    #[test]
+    fn sorted_early_stop_bids_as_a_full_scan() {
+        let n = 900;
+        let at = |k: usize, s: f64| {
+            let t = (k as f64 + s) * 0.754_877_666;
+            (t.fract(), ((k as f64 + s) * 0.569_840_29).fract())
+        };
+        let cost = |i: usize, j: usize| {
+            let (a, b) = (at(i, 0.3), at(j, 0.7));
+            (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)
+        };
+        let (mut row_ptr, mut col, mut pc) = (vec![0usize], Vec::new(), Vec::new());
+        for i in 0..n {
+            let mut near: Vec<(f32, u32)> = (0..n).map(|j| (cost(i, j) as f32, j as u32)).collect();
+            near.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
+            for &(c, j) in &near[..10] {
+                pc.push(c);
+                col.push(j);
+            }
+            row_ptr.push(col.len());
+        }
+        let run = |sorted: bool| {
+            let g = Graph {
+                row_ptr: &row_ptr,
+                col: &col,
+                cols: n,
+                cost,
+                pair_cost: Some(&pc),
+                sorted,
+                certified: f64::INFINITY,
+            };
+            let mut v = vec![0.0; n];
+            let m = auction(&g, &mut v, 1e-4, 1e-4, 4.0, 1.0, &mut nothing_outside());
+            (m.x, m.bids, m.unassigned, v)
+        };
+        let (fast, full) = (run(true), run(false));
+        assert!(fast.1 > 5 * n as u64, "a long auction: {} bids", fast.1);
+        assert_eq!(fast.1, full.1, "bids");
+        assert_eq!(fast.2, full.2, "unassigned");
+        assert_eq!(fast.0, full.0, "matching");
+        assert!(fast
+            .3
+            .iter()
+            .zip(&full.3)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 
     /// Two rows whose only candidate is column 0 of two.
