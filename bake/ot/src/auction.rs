@@ -228,6 +228,15 @@ where
         let (mut spent, mut since) = (0u64, 0u64);
         while let Some(i) = queue.pop_front() {
             let i = i as usize;
+            // The next row's first candidates, read now: a bid mostly waits on memory, and the
+            // read's miss then overlaps this bid's (nothing depends on the value).
+            if let Some(&k) = queue.front() {
+                let p = graph.row_ptr[k as usize];
+                std::hint::black_box((
+                    graph.col.get(p).copied(),
+                    graph.pair_cost.and_then(|c| c.get(p).copied()),
+                ));
+            }
             if spent >= budget || since >= stall {
                 parked.push(i);
                 parked.extend(queue.drain(..).map(|i| i as usize));
