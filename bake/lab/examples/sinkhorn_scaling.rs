@@ -4,10 +4,11 @@
 //! `cargo run --release -p otbake-lab --example sinkhorn_scaling -- N SHAPE [exact] [KEY=VALUE ..]`, e.g.
 //! `5000 duck exact` or `250000 duck tolerance=3e-4 auction_eps=0.0625` (keys: blur_spacing,
 //! tolerance, truncate, auction_eps, scaling; `seed` is the shape's sample seed, 1 unless given).
-//! Gaussian proxy (σ = 1/6, seed 0) → N samples of `../shared/data/shapes/SHAPE.png` (inverted
-//! luminance, seed 1 unless `seed=` says); a mesh name (cow, fish, torus, suzanne) instead of SHAPE
-//! makes it 3D: the mesh voxelized at 64³ and a 3D Gaussian proxy; a path to a `.brdf` (or MERL
-//! `.binary`) file makes it a BRDF on a `res³` grid (`res=90` unless given), e.g.
+//! Gaussian proxy (σ = 1/6, seed 0) → N samples of `shared/data/shapes/SHAPE.png` beside the
+//! repository, whatever the working directory (inverted luminance, seed 1 unless `seed=` says); a
+//! mesh name (cow, fish, torus, suzanne) instead of SHAPE makes it 3D: the mesh voxelized at 64³
+//! and a 3D Gaussian proxy; a path to a `.brdf` (or MERL `.binary`) file, relative to the working
+//! directory, makes it a BRDF on a `res³` grid (`res=90` unless given), e.g.
 //! `5000 ../shared/data/brdfs/cornell_garnet_red.brdf exact`. With `exact`, also runs the
 //! exact solver and prints the cost ratio and the L2-UVP of the Sinkhorn map against the exact
 //! matching. `OTBAKE_TRACE=1` prints every stage.
@@ -19,6 +20,12 @@ use otbake::sample::importance_sample;
 use otbake::solve::metrics::l2_uvp;
 use otbake::solve::{solve, ExactSettings, Problem, SinkhornSettings, SolverSettings};
 use otbake_lab::timing;
+
+/// `shared/data` beside the repository, found from this crate's directory (`bake/lab`), so the
+/// example runs from any working directory.
+fn data_dir() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
+}
 
 fn main() {
     // As `otbake` does: freed solver buffers go back to the system (D147).
@@ -70,12 +77,12 @@ fn main() {
                 resolution: 64,
                 ..MeshOptions::default()
             };
-            let path = format!("../shared/data/meshes/{m}.obj");
-            voxelize::load(std::path::Path::new(&path), &options).expect("mesh")
+            let path = data_dir().join(format!("meshes/{m}.obj"));
+            voxelize::load(&path, &options).expect("mesh")
         }
         None => {
-            let path = format!("../shared/data/shapes/{shape}.png");
-            load(std::path::Path::new(&path), DensityChannel::Inverted).expect("shape")
+            let path = data_dir().join(format!("shapes/{shape}.png"));
+            load(&path, DensityChannel::Inverted).expect("shape")
         }
     };
     let dim = grid.dim();
