@@ -35,7 +35,7 @@
 //! column: the result does not depend on the thread count.
 
 use super::hierarchy::Hierarchy;
-use super::kernel::{self, Bounds};
+use super::kernel::{self, Affine, Bounds};
 use crate::auction::{Outside, Widened};
 use crate::cost;
 use crate::Wrap;
@@ -66,7 +66,7 @@ pub(super) struct Completion<'a, const D: usize> {
     pub max_edges: usize,
     /// The cell bounds of `g` on `ht` ([`kernel::bounds`]): lower bounds for every price the
     /// auction reaches, since prices start at 0 and only fall.
-    pub bnd: &'a Bounds<D>,
+    pub bnd: &'a Bounds<D, Affine<D>>,
     /// The auction's own graph, where it certifies a row's edges: read instead of searched.
     pub support: Option<Support<'a>>,
 }

@@ -30,7 +30,7 @@ struct Case<const D: usize> {
     level: usize,
     /// A zero target potential, and its cell bounds.
     g: Vec<f64>,
-    bnd: Bounds<D>,
+    bnd: Bounds<D, Affine<D>>,
 }
 
 impl<const D: usize> Case<D> {

@@ -2,7 +2,7 @@
 //! rows and columns whose potentials moved.
 
 use super::super::hierarchy::Hierarchy;
-use super::bounds::bounds;
+use super::bounds::{bounds, Affine, Bounds};
 use super::search::search_some;
 use super::sparse::merge_lists_in_place;
 use super::Kernel;
@@ -102,7 +102,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     let col_hits = if cols.is_empty() {
         Vec::new()
     } else {
-        let bnd = bounds(src, level, &f);
+        let bnd: Bounds<D, Affine<D>> = bounds(src, level, &f);
         search_some(ys, src, level, &bnd, &f, &cols, |j| g[j] + margin, wrap)
     };
     let mut extra: Vec<(u32, u32)> = Vec::new();
@@ -122,7 +122,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
         .collect();
     // Moved rows: every column with C − g ≤ f + θε, which also gives their exact minimum.
     if !rows.is_empty() {
-        let bnd = bounds(tgt, level, g);
+        let bnd: Bounds<D, Affine<D>> = bounds(tgt, level, g);
         let row_hits = search_some(xs, tgt, level, &bnd, g, &rows, |i| f[i] + margin, wrap);
         for (&i, (js, lowest)) in rows.iter().zip(row_hits) {
             f[i as usize] = f[i as usize].min(lowest);

@@ -26,7 +26,7 @@
 //! chunks written in order, so the kernel's bytes do not depend on the thread count.
 //!
 //! Here: the [`Kernel`] and its whole [`build`]; `bounds` (the affine lower bounds of a
-//! potential over the cells), `search` (the branch-and-bound searches), `local` (rebuilding only
+//! potential over the cells, affine and quadratic), `search` (the branch-and-bound searches), `local` (rebuilding only
 //! the rows and columns that moved) and `sparse` (concatenating, merging and transposing sparse
 //! lists in fixed chunks).
 
@@ -35,7 +35,7 @@ mod local;
 mod search;
 mod sparse;
 
-pub(super) use bounds::{bounds, Bounds};
+pub(super) use bounds::{bounds, Affine, Bounds};
 pub(super) use local::{rebuild_local, Local, LocalLimits};
 pub(super) use search::search;
 pub(in crate::sinkhorn) use sparse::{map_lists_mut, sort_lists_by_value};

@@ -3,7 +3,7 @@
 //! tests, a group of neighbouring queries at once ([`search_group`]), in fixed chunks.
 
 use super::super::hierarchy::{Hierarchy, Level};
-use super::bounds::{affine_minorant, bounds, cell_bound, Bounds};
+use super::bounds::{affine_minorant, bounds, Affine, Bounds, Minorant, Quad};
 use super::CHUNK;
 use crate::cost;
 use crate::Wrap;
@@ -22,10 +22,10 @@ const BUCKET: u32 = 32;
 /// (j, C − pot_j) in search order; returns the minimum. With `fixed = Some(t)` the threshold is `t`
 /// itself, whatever the minimum (the local rebuilds' absolute tests), and the return value is the
 /// smallest value found (∞ if none).
-pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
+pub(in crate::sinkhorn) fn search<const D: usize, M: Minorant<D>, P: Fn(usize) -> f64>(
     h: &Hierarchy<D>,
     level: usize,
-    bnd: &Bounds<D>,
+    bnd: &Bounds<D, M>,
     pot: &P,
     x: &[f64; D],
     margin: f64,
@@ -91,16 +91,8 @@ pub(in crate::sinkhorn) fn search<const D: usize, P: Fn(usize) -> f64>(
         for j in a..b {
             let ju = j as usize;
             // A cell above the search level (the level below is never the search level here).
-            let bound = images.min_of(|p, p2| {
-                cell_bound(
-                    p,
-                    p2,
-                    &bnd.beta[l + 1][ju],
-                    bnd.alpha[l + 1][ju],
-                    &next.lo[ju],
-                    &next.hi[ju],
-                )
-            });
+            let cell = &bnd.cells[l + 1][ju];
+            let bound = images.min_of(|p, p2| cell.bound(p, p2, &next.lo[ju], &next.hi[ju]));
             if bound <= best + margin {
                 kids[m] = (bound, j);
                 m += 1;
@@ -144,7 +136,14 @@ pub(super) fn search_all<const D: usize>(
     max_pairs: usize,
 ) -> Option<(Vec<usize>, Vec<u32>, Vec<f64>)> {
     let count = AtomicUsize::new(0);
-    let bnd = bounds(to, level, pot);
+    // The grouped searches bound a box of queries with the affine minorants, the single ones one
+    // query with the quadratic ones ([`Quad`]).
+    let (affine, quad): (Option<Bounds<D, Affine<D>>>, Option<Bounds<D, Quad<D>>>) = if margin > 0.0
+    {
+        (Some(bounds(to, level, pot)), None)
+    } else {
+        (None, Some(bounds(to, level, pot)))
+    };
     let m = from.len();
     // Column tests (a margin of θε) search in groups ([`search_group`]); a search for the
     // minimum alone (the row minima) one query at a time: a group pays the spread of its queries'
@@ -167,7 +166,7 @@ pub(super) fn search_all<const D: usize>(
                 idx.extend(list.iter().map(|e| e.0));
                 mins.push(min);
             };
-            if margin > 0.0 {
+            if let Some(bnd) = &affine {
                 let mut found = vec![Vec::new(); GROUP];
                 let mut best = [f64::INFINITY; GROUP];
                 let mut hints: Vec<u32> = Vec::with_capacity(GROUP);
@@ -178,7 +177,7 @@ pub(super) fn search_all<const D: usize>(
                     let g = group.len();
                     let (found, best) = (&mut found[..g], &mut best[..g]);
                     search_group(
-                        to, level, &bnd, pot, group, margin, wrap, &mut stack, found, best, &hints,
+                        to, level, bnd, pot, group, margin, wrap, &mut stack, found, best, &hints,
                     );
                     hints.clear();
                     for (list, &min) in found.iter_mut().zip(&*best) {
@@ -190,7 +189,7 @@ pub(super) fn search_all<const D: usize>(
                     hints.sort_unstable();
                     hints.dedup();
                 }
-            } else {
+            } else if let Some(bnd) = &quad {
                 let mut found = Vec::new();
                 let mut hint = None;
                 for x in &from.pos[a..b] {
@@ -201,7 +200,7 @@ pub(super) fn search_all<const D: usize>(
                     let best = search(
                         to,
                         level,
-                        &bnd,
+                        bnd,
                         &|j| pot[j],
                         x,
                         margin,
@@ -243,11 +242,11 @@ pub(super) fn search_all<const D: usize>(
 /// threshold (`limit(element)`), sorted by index, with the smallest value found. Chunks of fixed
 /// size, so the result does not depend on the thread count.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn search_some<const D: usize>(
+pub(super) fn search_some<const D: usize, M: Minorant<D>>(
     from: &Level<D>,
     to: &Hierarchy<D>,
     level: usize,
-    bnd: &Bounds<D>,
+    bnd: &Bounds<D, M>,
     pot: &[f64],
     which: &[u32],
     limit: impl Fn(usize) -> f64 + Sync,
@@ -302,7 +301,7 @@ fn shifts(wrap: Wrap) -> &'static [f64] {
 }
 
 /// A lower bound of C(x, y_j) − pot_j − b·x over every query x in the box [`qlo`, `qhi`] and every
-/// descendant y_j of a cell (its affine minorant `beta`, `alpha` and box `lo`, `hi`), for a slope
+/// descendant y_j of a cell (its affine minorant `cell` and box `lo`, `hi`), for a slope
 /// `b` across the queries.
 ///
 /// With h_j = |y_j|² − pot_j ≥ α + β·y_j, C − pot_j − b·x ≥ α + Σ_k (x_k² − (2y_k + b_k) x_k +
@@ -310,7 +309,7 @@ fn shifts(wrap: Wrap) -> &'static [f64] {
 /// a corner value y_e the term is (x_k − c)² − c² + β_k y_e with c = y_e + b_k/2, smallest over the
 /// query box at the clamped distance from c. On the torus every image z = x − m (m ∈ {−1, 0, 1}^d)
 /// gets the same bound (with b·x = b·z + b·m) and the minimum over the images is again taken axis
-/// by axis. For one query and b = 0 this is [`cell_bound`] in another form.
+/// by axis. For one query and b = 0 this is [`Affine::bound`] in another form.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 fn group_bound<const D: usize>(
@@ -318,11 +317,11 @@ fn group_bound<const D: usize>(
     qhi: &[f64; D],
     b: &[f64; D],
     shifts: &[f64],
-    beta: &[f64; D],
-    alpha: f64,
+    cell: &Affine<D>,
     lo: &[f64; D],
     hi: &[f64; D],
 ) -> f64 {
+    let (beta, alpha) = (&cell.beta, cell.alpha);
     let mut s = alpha;
     let mut mag = alpha.abs();
     // The term of axis k for a corner value y and the query interval [za, zb], and its size.
@@ -347,7 +346,7 @@ fn group_bound<const D: usize>(
         s += best.0;
         mag += best.1;
     }
-    // Rounding slack, as in `cell_bound`: a bound above the true value could prune a pair at the
+    // Rounding slack, as in `Affine::bound`: a bound above the true value could prune a pair at the
     // threshold.
     s - mag * 1e-13
 }
@@ -367,7 +366,7 @@ fn group_bound<const D: usize>(
 fn search_group<const D: usize>(
     h: &Hierarchy<D>,
     level: usize,
-    bnd: &Bounds<D>,
+    bnd: &Bounds<D, Affine<D>>,
     pot: &[f64],
     queries: &[[f64; D]],
     margin: f64,
@@ -451,10 +450,10 @@ fn search_group<const D: usize>(
         } else if l + 1 == level || bnd.desc[l][cu].1 - bnd.desc[l][cu].0 <= BUCKET {
             let (da, db) = bnd.desc[l][cu];
             let lvl = &h.levels[l];
-            let (beta, alpha) = (&bnd.beta[l][cu], bnd.alpha[l][cu]);
+            let cell = &bnd.cells[l][cu];
             let (lo, hi) = (&lvl.lo[cu], &lvl.hi[cu]);
             for q in 0..g {
-                let own = images[q].min_of(|p, p2| cell_bound(p, p2, beta, alpha, lo, hi));
+                let own = images[q].min_of(|p, p2| cell.bound(p, p2, lo, hi));
                 if own <= best[q] + margin {
                     eval(q, da..db, &mut out[q], &mut best[q]);
                 }
@@ -471,8 +470,7 @@ fn search_group<const D: usize>(
                     &qhi,
                     &slope,
                     shifts,
-                    &bnd.beta[l + 1][ju],
-                    bnd.alpha[l + 1][ju],
+                    &bnd.cells[l + 1][ju],
                     &next.lo[ju],
                     &next.hi[ju],
                 );

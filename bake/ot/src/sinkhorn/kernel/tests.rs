@@ -308,7 +308,9 @@ fn grouped_search_equals_dense_scan_in_3d() {
                         + 2e-3 * ((i as f64 * 12.9898).sin() * 43758.5453).fract()
                 })
                 .collect();
-            for margin in [1e-3, 2e-2] {
+            // Margin 0: the single searches on quadratic minorants (the row minima); above 0 the
+            // grouped ones on affine minorants.
+            for margin in [0.0, 1e-3, 2e-2] {
                 let (ptr, idx, mins) =
                     search::search_all(ys, &hs, level, &pot, margin, wrap, usize::MAX).unwrap();
                 for j in 0..ys.len() {
@@ -329,6 +331,76 @@ fn grouped_search_equals_dense_scan_in_3d() {
             }
         }
     }
+}
+
+/// Both minorants bound C(x, y_j) − pot_j from below over a cell, for queries inside and far
+/// outside it, and on a convex h (what |y|² less a c-concave potential is) the quadratic one is
+/// much tighter: what its fit is for.
+#[test]
+fn quadratic_minorant_bounds_below_and_tighter() {
+    use bounds::{Affine, Minorant, Quad};
+    let ys: Vec<[f64; 3]> = (0..300)
+        .map(|i| {
+            let t = i as f64 + 0.5;
+            [
+                0.3 + 0.2 * (t * 0.754_877_666).fract(),
+                0.4 + 0.1 * (t * 0.569_840_29).fract(),
+                0.2 + 0.3 * (t * 0.362_523_12).fract(),
+            ]
+        })
+        .collect();
+    let h: Vec<f64> = ys
+        .iter()
+        .enumerate()
+        .map(|(j, y)| {
+            1.7 * y[0] * y[0] + 2.4 * y[1] * y[1] + 0.9 * y[2] * y[2] + 0.4 * y[0] * y[1]
+                - 0.3 * y[2]
+                + 1e-4 * ((j as f64 * 12.9898).sin() * 43758.5453).fract()
+        })
+        .collect();
+    let pot: Vec<f64> = ys
+        .iter()
+        .zip(&h)
+        .map(|(y, hj)| y.iter().map(|v| v * v).sum::<f64>() - hj)
+        .collect();
+    let mut lo = ys[0];
+    let mut hi = ys[0];
+    for y in &ys {
+        for k in 0..3 {
+            lo[k] = lo[k].min(y[k]);
+            hi[k] = hi[k].max(y[k]);
+        }
+    }
+    let (aff, quad) = (Affine::fit(&ys, &h), Quad::fit(&ys, &h));
+    let (mut slack_a, mut slack_q) = (0.0, 0.0);
+    for i in 0..4000 {
+        let t = i as f64 + 0.25;
+        let x = [
+            -0.5 + 2.0 * (t * 0.618_033_99).fract(),
+            -0.5 + 2.0 * (t * 0.414_213_56).fract(),
+            -0.5 + 2.0 * (t * 0.732_050_81).fract(),
+        ];
+        let x2 = x.iter().map(|v| v * v).sum::<f64>();
+        let truth = ys
+            .iter()
+            .zip(&pot)
+            .map(|(y, p)| sq(&x, y) - p)
+            .fold(f64::INFINITY, f64::min);
+        let (a, q) = (aff.bound(&x, x2, &lo, &hi), quad.bound(&x, x2, &lo, &hi));
+        assert!(
+            a <= truth && q <= truth,
+            "query {i}: {a} / {q} above {truth}"
+        );
+        // The slack that matters is near the cell: far from it both bounds prune at once.
+        if (0..3).all(|k| x[k] > lo[k] - 0.1 && x[k] < hi[k] + 0.1) {
+            slack_a += truth - a;
+            slack_q += truth - q;
+        }
+    }
+    assert!(
+        slack_q < 0.5 * slack_a,
+        "quadratic slack {slack_q} against affine {slack_a}"
+    );
 }
 
 /// Sorting lists by value gives `f32::total_cmp` order, ties by entry, for values of every sign,
