@@ -10,12 +10,18 @@ use crate::Wrap;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// A cell with at most this many descendants on the search level has them evaluated directly
-/// instead of being searched further: near the bottom of the hierarchy cells hold one to eight
+/// In the grouped searches ([`search_group`]), a cell with at most this many descendants on the
+/// search level has them evaluated directly instead of being searched further: near the bottom of the hierarchy cells hold one to eight
 /// points, and bounding every child cost more than evaluating the points (a column search of the
 /// 250K cow's final build bounded 1149 children and expanded 205 cells to find ~77 pairs; with
 /// buckets of 32 it bounds 612, expands 77 and evaluates 538 points, 26% less time; D151).
 const BUCKET: u32 = 32;
+
+/// [`BUCKET`] of the searches one query at a time ([`search`]): with the quadratic bounds of the
+/// row minima a bound costs more and prunes more, and evaluating up to 64 points beat bounding
+/// them (1M cow final build row minima 2.03 → 1.65 s, the final stage's local rebuilds a few
+/// percent faster; 128 the same, 256 slower; D156).
+const BUCKET_ONE: u32 = 64;
 
 #[allow(clippy::too_many_arguments)]
 /// All cells j of `h` at `level` with C(x, y_j) − pot_j ≤ min + `margin`, appended to `out` as
@@ -74,7 +80,7 @@ pub(in crate::sinkhorn) fn search<const D: usize, M: Minorant<D>, P: Fn(usize) -
         // A cell just above the search level (its children are the candidates themselves, as
         // many as coincide) or with few descendants: its candidates are evaluated directly.
         let (da, db) = bnd.desc[l][c as usize];
-        if l + 1 == level || db - da <= BUCKET {
+        if l + 1 == level || db - da <= BUCKET_ONE {
             let pts = &h.levels[level];
             for j in da..db {
                 let r = cost::sq(wrap, x, &pts.pos[j as usize]) - pot(j as usize);
