@@ -569,6 +569,7 @@ impl Rebuild {
             ht,
             st.level,
             &mut st.kernel,
+            &st.g,
             &g,
             &st.f0,
             &st.g0,

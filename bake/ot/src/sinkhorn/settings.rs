@@ -92,8 +92,10 @@ impl Default for SinkhornSettings {
 /// 7: ω = 1.9 on the cell stages, a plain probe every 10 over-relaxed iterations (D150). 8: kernel
 /// entries' exponentials in `f32` (the 1M cow's map moved among near-ties, D154). 9: a row's
 /// K·v in four partial sums, the over-relaxation's power as exp(ω' ln x) (D155; the measured maps
-/// kept every byte, but a near-tie elsewhere may not).
-const REVISION: u32 = 9;
+/// kept every byte, but a near-tie elsewhere may not). 10: local rebuilds rescale the entries they
+/// keep by a row and a column factor instead of valuing them afresh (D157; the 1M cow's map moved
+/// among near-ties, the others measured kept their bytes).
+const REVISION: u32 = 10;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

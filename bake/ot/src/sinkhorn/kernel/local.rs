@@ -36,7 +36,8 @@ pub(in crate::sinkhorn) enum Local {
 
 /// Rebuilds `kern` in place for the new target potential `g` by searching again only the rows and
 /// columns whose potentials moved by more than τε since the last whole build (`f0`, `g0`: the
-/// potentials of that build; `kern` holds its pairs and every pair added since). In place, because
+/// potentials of that build; `kern` holds its pairs and every pair added since, valued for its own
+/// `f` and `g_then`). In place, because
 /// an old and a new kernel side by side were the solve's peak memory; `kern` is unchanged when
 /// the result is `TooMany` or `None`.
 ///
@@ -56,6 +57,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     tgt: &Hierarchy<D>,
     level: usize,
     kern: &mut Kernel,
+    g_then: &[f64],
     g: &[f64],
     f0: &[f64],
     g0: &[f64],
@@ -143,10 +145,10 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     for i in 0..m {
         starts[i + 1] += starts[i];
     }
-    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, |i| {
+    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, Some(&mut kern.k), |i| {
         extra[starts[i]..starts[i + 1]].iter().map(|e| e.1)
     });
-    kern.f = f;
-    kern.set_values(xs, ys, g, eps, wrap);
+    let f_then = std::mem::replace(&mut kern.f, f);
+    kern.revalue(xs, ys, (&f_then, g_then), g, eps, wrap);
     Some(Local::Built(rows.len(), cols.len()))
 }

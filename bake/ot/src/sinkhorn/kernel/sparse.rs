@@ -125,8 +125,12 @@ pub(super) fn union<'a>(
     })
 }
 
+/// The value [`merge_lists_in_place`] gives the entries it adds.
+pub(super) const NEW_VALUE: f32 = f32::NAN;
+
 /// Merges into every list of (`ptr`, `idx`) the sorted entries `new(i)`, in place: list i becomes
-/// the sorted union of its entries and `new(i)`. The lists' new lengths are counted first (in
+/// the sorted union of its entries and `new(i)`. With `vals` (one value per entry), every old entry
+/// keeps its value and every new one gets [`NEW_VALUE`]. The lists' new lengths are counted first (in
 /// parallel); the array then grows once, by exactly what the lists gain (a large allocation grows
 /// by remapping its pages, without a copy), and the lists are merged from the last to the first,
 /// each from its end, so that no entry is overwritten before it is read: a list only moves towards
@@ -136,6 +140,7 @@ pub(super) fn union<'a>(
 pub(super) fn merge_lists_in_place<'a, I>(
     ptr: &mut Vec<usize>,
     idx: &mut Vec<u32>,
+    mut vals: Option<&mut Vec<f32>>,
     new: impl Fn(usize) -> I + Sync,
 ) where
     I: DoubleEndedIterator<Item = u32> + 'a,
@@ -150,6 +155,10 @@ pub(super) fn merge_lists_in_place<'a, I>(
     debug_assert!(total >= idx.len());
     idx.reserve_exact(total - idx.len());
     idx.resize(total, 0);
+    if let Some(v) = vals.as_deref_mut() {
+        v.reserve_exact(total - v.len());
+        v.resize(total, NEW_VALUE);
+    }
     let first = (0..m).find(|&i| new_ptr[i + 1] != ptr[i + 1]).unwrap_or(m);
     // A list whose length is unchanged is unchanged (the union holds the old entries), and a run of
     // such lists moves by one offset: one `copy_within` for the run. Most lists gain nothing in a
@@ -164,6 +173,9 @@ pub(super) fn merge_lists_in_place<'a, I>(
                 a -= 1;
             }
             idx.copy_within(ptr[a]..ptr[end], new_ptr[a]);
+            if let Some(v) = vals.as_deref_mut() {
+                v.copy_within(ptr[a]..ptr[end], new_ptr[a]);
+            }
             end = a;
             continue;
         }
@@ -173,28 +185,33 @@ pub(super) fn merge_lists_in_place<'a, I>(
         let mut add = new(i).rev().peekable();
         loop {
             let old = (r > lo).then(|| idx[r - 1]);
-            let v = match (old, add.peek().copied()) {
+            // The entry, and where its value comes from (an old entry's own, or none).
+            let (e, from) = match (old, add.peek().copied()) {
                 (Some(a), Some(b)) => {
+                    let from = (a >= b).then_some(r - 1);
                     if a >= b {
                         r -= 1;
                     }
                     if b >= a {
                         add.next();
                     }
-                    a.max(b)
+                    (a.max(b), from)
                 }
                 (Some(a), None) => {
                     r -= 1;
-                    a
+                    (a, Some(r))
                 }
                 (None, Some(b)) => {
                     add.next();
-                    b
+                    (b, None)
                 }
                 (None, None) => break,
             };
             w -= 1;
-            idx[w] = v;
+            idx[w] = e;
+            if let Some(v) = vals.as_deref_mut() {
+                v[w] = from.map_or(NEW_VALUE, |k| v[k]);
+            }
         }
         debug_assert_eq!(w, new_ptr[i], "list {i}: lens[{i}] is not its union's size");
     }

@@ -163,6 +163,7 @@ fn local_rebuild_keeps_every_pair_it_promises() {
         &ht,
         level,
         &mut kern,
+        &g0,
         &g,
         &whole.f,
         &g0,
@@ -200,15 +201,25 @@ fn local_rebuild_keeps_every_pair_it_promises() {
             }
         }
     }
-    // Entries hold the values of the new potentials, and the column form the same pairs.
+    // Entries hold the values of the new potentials (the old ones rescaled, to within rounding;
+    // the new ones exactly), and the column form the same pairs.
+    let mut rescaled = 0;
     for i in 0..xs.len() {
+        let old = &whole.col[whole.row_ptr[i]..whole.row_ptr[i + 1]];
         for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
             let j = kern.col[p] as usize;
             let c = sq(&xs.pos[i], &ys.pos[j]);
             let want = value((kern.f[i] + g[j] - c) / eps);
-            assert_eq!(kern.k[p], want);
+            if old.contains(&(j as u32)) && want > K_MIN as f32 {
+                rescaled += 1;
+                let err = (kern.k[p] / want - 1.0).abs();
+                assert!(err < 1e-5, "pair ({i},{j}): {} against {want}", kern.k[p]);
+            } else if !old.contains(&(j as u32)) {
+                assert_eq!(kern.k[p], want, "new pair ({i},{j})");
+            }
         }
     }
+    assert!(rescaled > whole.pairs() / 2, "{rescaled} rescaled entries");
     let (col_ptr, row) = kern.columns();
     assert_eq!(row.len(), kern.pairs());
     for j in 0..ys.len() {
@@ -267,10 +278,31 @@ fn lists_merge_in_place_into_their_unions() {
         })
         .collect();
     let total = want.iter().map(Vec::len).sum::<usize>();
-    sparse::merge_lists_in_place(&mut ptr, &mut idx, |i| adds[i].iter().copied());
+    // With values (an entry's value is a function of its list and entry): the old entries keep
+    // theirs, the new ones get `NEW_VALUE`.
+    let val = |i: usize, j: u32| (i * 1000) as f32 + j as f32;
+    let (mut ptr2, mut idx2) = (ptr.clone(), idx.clone());
+    let mut vals: Vec<f32> = (0..m)
+        .flat_map(|i| lists[i].iter().map(move |&j| val(i, j)))
+        .collect();
+    sparse::merge_lists_in_place(&mut ptr, &mut idx, None, |i| adds[i].iter().copied());
     assert_eq!(idx.len(), total);
     for i in 0..m {
         assert_eq!(&idx[ptr[i]..ptr[i + 1]], &want[i][..], "list {i}");
+    }
+    sparse::merge_lists_in_place(&mut ptr2, &mut idx2, Some(&mut vals), |i| {
+        adds[i].iter().copied()
+    });
+    assert_eq!((&ptr2, &idx2, vals.len()), (&ptr, &idx, total));
+    for i in 0..m {
+        for p in ptr[i]..ptr[i + 1] {
+            let j = idx[p];
+            if lists[i].contains(&j) {
+                assert_eq!(vals[p], val(i, j), "list {i} entry {j} keeps its value");
+            } else {
+                assert!(vals[p].is_nan(), "list {i} entry {j} is new");
+            }
+        }
     }
 }
 
