@@ -63,11 +63,11 @@ impl<const D: usize> Minorant<D> for Affine<D> {
 
 /// h_j ≥ α + β·(y_j − m) + Σ_k q_k (y_jk − m_k)² about the cell's centroid m, with q ≥ 0.
 ///
-/// h is close to convex (|y|² less a c-concave potential: exactly convex for the hard one), so
-/// over a cell it is a bowl, and an affine bound gives away the bowl's depth: about the curvature
-/// times the squared half-width, several ε on the cells a search opens. A separable quadratic keeps
-/// it, and its minimum over the box still has a closed form axis by axis. One query at a time the
-/// 1M cow's row minima searched 32% less time with it (D156); bounding a box of queries with it cost
+/// h is close to convex (|y|² less a c-concave potential: exactly convex for the hard one), so over
+/// a cell it is a bowl, and an affine bound gives away the bowl's depth: about the curvature times
+/// the squared half-width, several ε on the cells a search opens. A separable quadratic keeps it,
+/// and its minimum over the box still has a closed form axis by axis. One query at a time the 1M
+/// cow's row minima searched 32% less time with it (D156); bounding a box of queries with it cost
 /// more than it pruned.
 #[derive(Clone, Copy, Debug)]
 pub(in crate::sinkhorn) struct Quad<const D: usize> {

@@ -25,8 +25,8 @@
 //! Determinism: every row (column) is searched independently and rows are processed in fixed-size
 //! chunks written in order, so the kernel's bytes do not depend on the thread count.
 //!
-//! Here: the [`Kernel`] and its whole [`build`]; `bounds` (the affine lower bounds of a
-//! potential over the cells, affine and quadratic), `search` (the branch-and-bound searches), `local` (rebuilding only
+//! Here: the [`Kernel`] and its whole [`build`]; `bounds` (lower bounds of a potential over the
+//! cells, affine or quadratic), `search` (the branch-and-bound searches), `local` (rebuilding only
 //! the rows and columns that moved) and `sparse` (concatenating, merging and transposing sparse
 //! lists in fixed chunks).
 
@@ -104,12 +104,11 @@ impl Kernel {
 
     /// The values for new potentials (`self.f`, `g`) of a pattern whose entries hold their values
     /// for (`then.0`, `then.1`), but for the entries a merge added ([`sparse::NEW_VALUE`]). An old
-    /// entry is rescaled by its row's and its column's factor, exp((f_i − f'_i)/ε) and
-    /// exp((g_j − g'_j)/ε): no cost and no exponential per pair, where [`Kernel::set_values`]
-    /// spent most of a local rebuild's last pass on both (0.2 s of each of the 1M cow's final
-    /// ones, against 0.07 s). A new entry, or one the clamp at `K_MIN` lost, is valued from its
-    /// cost. The rescaled value differs from a recomputed one by rounding only (a few `f32` ulps
-    /// after the rebuilds of a stage; a whole build values every pair afresh).
+    /// entry is rescaled by its row's and its column's factor, exp((f_i − f'_i)/ε) and exp((g_j −
+    /// g'_j)/ε): no cost and no exponential per pair, which were most of a local rebuild's last
+    /// pass with [`Kernel::set_values`] (D157). A new entry, or one the clamp at `K_MIN` lost, is
+    /// valued from its cost. The rescaled value differs from a recomputed one by rounding only (a
+    /// few `f32` ulps after the rebuilds of a stage; a whole build values every pair afresh).
     fn revalue<const D: usize>(
         &mut self,
         xs: &Level<D>,

@@ -11,10 +11,11 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// In the grouped searches ([`search_group`]), a cell with at most this many descendants on the
-/// search level has them evaluated directly instead of being searched further: near the bottom of the hierarchy cells hold one to eight
-/// points, and bounding every child cost more than evaluating the points (a column search of the
-/// 250K cow's final build bounded 1149 children and expanded 205 cells to find ~77 pairs; with
-/// buckets of 32 it bounds 612, expands 77 and evaluates 538 points, 26% less time; D151).
+/// search level has them evaluated directly instead of being searched further: near the bottom of
+/// the hierarchy cells hold one to eight points, and bounding every child cost more than evaluating
+/// the points (a column search of the 250K cow's final build bounded 1149 children and expanded 205
+/// cells to find ~77 pairs; with buckets of 32 it bounds 612, expands 77 and evaluates 538 points,
+/// 26% less time; D151).
 const BUCKET: u32 = 32;
 
 /// [`BUCKET`] of the searches one query at a time ([`search`]): with the quadratic bounds of the

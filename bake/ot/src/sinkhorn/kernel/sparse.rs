@@ -130,13 +130,13 @@ pub(super) const NEW_VALUE: f32 = f32::NAN;
 
 /// Merges into every list of (`ptr`, `idx`) the sorted entries `new(i)`, in place: list i becomes
 /// the sorted union of its entries and `new(i)`. With `vals` (one value per entry), every old entry
-/// keeps its value and every new one gets [`NEW_VALUE`]. The lists' new lengths are counted first (in
-/// parallel); the array then grows once, by exactly what the lists gain (a large allocation grows
-/// by remapping its pages, without a copy), and the lists are merged from the last to the first,
-/// each from its end, so that no entry is overwritten before it is read: a list only moves towards
-/// the end, and a list ends, after the merge, no earlier than it did before. Sequential: one pass
-/// over the entries from the first list that gains any, runs of lists that gain nothing moved as
-/// one block.
+/// keeps its value and every new one gets [`NEW_VALUE`]. The lists' new lengths are counted first
+/// (in parallel); the array then grows once, by exactly what the lists gain (a large allocation
+/// grows by remapping its pages, without a copy), and the lists are merged from the last to the
+/// first, each from its end, so that no entry is overwritten before it is read: a list only moves
+/// towards the end, and a list ends, after the merge, no earlier than it did before. Sequential:
+/// one pass over the entries from the first list that gains any, runs of lists that gain nothing
+/// moved as one block.
 pub(super) fn merge_lists_in_place<'a, I>(
     ptr: &mut Vec<usize>,
     idx: &mut Vec<u32>,
