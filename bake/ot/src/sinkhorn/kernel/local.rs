@@ -37,9 +37,8 @@ pub(in crate::sinkhorn) enum Local {
 /// Rebuilds `kern` in place for the new target potential `g` by searching again only the rows and
 /// columns whose potentials moved by more than τε since the last whole build (`f0`, `g0`: the
 /// potentials of that build; `kern` holds its pairs and every pair added since, valued for its own
-/// `f` and `g_then`). In place, because
-/// an old and a new kernel side by side were the solve's peak memory; `kern` is unchanged when
-/// the result is `TooMany` or `None`.
+/// `f` and `g_then`). In place, because an old and a new kernel side by side were the solve's peak
+/// memory; `kern` is unchanged when the result is `TooMany` or `None`.
 ///
 /// Why it is enough. Every pair the whole build dropped had C − f0 − g0 > θε. A pair of a row and
 /// a column that both stayed within τε of (`f0`, `g0`) therefore still has C − f − g > (θ − 2τ)ε,

@@ -145,11 +145,10 @@ pub(super) fn search_all<const D: usize>(
     let count = AtomicUsize::new(0);
     // The grouped searches bound a box of queries with the affine minorants, the single ones one
     // query with the quadratic ones ([`Quad`]).
-    let (affine, quad): (Option<Bounds<D, Affine<D>>>, Option<Bounds<D, Quad<D>>>) = if margin > 0.0
-    {
-        (Some(bounds(to, level, pot)), None)
+    let walk = if margin > 0.0 {
+        Walk::Grouped(bounds(to, level, pot))
     } else {
-        (None, Some(bounds(to, level, pot)))
+        Walk::Single(bounds(to, level, pot))
     };
     let m = from.len();
     // Column tests (a margin of θε) search in groups ([`search_group`]); a search for the
@@ -173,55 +172,59 @@ pub(super) fn search_all<const D: usize>(
                 idx.extend(list.iter().map(|e| e.0));
                 mins.push(min);
             };
-            if let Some(bnd) = &affine {
-                let mut found = vec![Vec::new(); GROUP];
-                let mut best = [f64::INFINITY; GROUP];
-                let mut hints: Vec<u32> = Vec::with_capacity(GROUP);
-                for group in from.pos[a..b].chunks(GROUP) {
-                    if count.load(Ordering::Relaxed) > max_pairs {
-                        break;
-                    }
-                    let g = group.len();
-                    let (found, best) = (&mut found[..g], &mut best[..g]);
-                    search_group(
-                        to, level, bnd, pot, group, margin, wrap, &mut stack, found, best, &hints,
-                    );
-                    hints.clear();
-                    for (list, &min) in found.iter_mut().zip(&*best) {
-                        if let Some(e) = list.iter().find(|e| e.1 == min) {
-                            hints.push(e.0);
+            match &walk {
+                Walk::Grouped(bnd) => {
+                    let mut found = vec![Vec::new(); GROUP];
+                    let mut best = [f64::INFINITY; GROUP];
+                    let mut hints: Vec<u32> = Vec::with_capacity(GROUP);
+                    for group in from.pos[a..b].chunks(GROUP) {
+                        if count.load(Ordering::Relaxed) > max_pairs {
+                            break;
                         }
-                        push(list, min);
+                        let g = group.len();
+                        let (found, best) = (&mut found[..g], &mut best[..g]);
+                        search_group(
+                            to, level, bnd, pot, group, margin, wrap, &mut stack, found, best,
+                            &hints,
+                        );
+                        hints.clear();
+                        for (list, &min) in found.iter_mut().zip(&*best) {
+                            if let Some(e) = list.iter().find(|e| e.1 == min) {
+                                hints.push(e.0);
+                            }
+                            push(list, min);
+                        }
+                        hints.sort_unstable();
+                        hints.dedup();
                     }
-                    hints.sort_unstable();
-                    hints.dedup();
                 }
-            } else if let Some(bnd) = &quad {
-                let mut found = Vec::new();
-                let mut hint = None;
-                for x in &from.pos[a..b] {
-                    if count.load(Ordering::Relaxed) > max_pairs {
-                        break;
+                Walk::Single(bnd) => {
+                    let mut found = Vec::new();
+                    let mut hint = None;
+                    for x in &from.pos[a..b] {
+                        if count.load(Ordering::Relaxed) > max_pairs {
+                            break;
+                        }
+                        found.clear();
+                        let best = search(
+                            to,
+                            level,
+                            bnd,
+                            &|j| pot[j],
+                            x,
+                            margin,
+                            wrap,
+                            &mut stack,
+                            &mut found,
+                            hint,
+                            None,
+                        );
+                        hint = found
+                            .iter()
+                            .min_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)))
+                            .map(|e| e.0);
+                        push(&mut found, best);
                     }
-                    found.clear();
-                    let best = search(
-                        to,
-                        level,
-                        bnd,
-                        &|j| pot[j],
-                        x,
-                        margin,
-                        wrap,
-                        &mut stack,
-                        &mut found,
-                        hint,
-                        None,
-                    );
-                    hint = found
-                        .iter()
-                        .min_by(|p, q| p.1.total_cmp(&q.1).then(p.0.cmp(&q.0)))
-                        .map(|e| e.0);
-                    push(&mut found, best);
                 }
             }
             (lens, idx, mins)
@@ -243,6 +246,14 @@ pub(super) fn search_all<const D: usize>(
         mins.extend(mn);
     }
     Some((ptr, idx, mins))
+}
+
+/// How [`search_all`] walks the hierarchy, with the cell bounds the walk needs.
+enum Walk<const D: usize> {
+    /// In groups of neighbouring queries, on affine minorants (the column tests).
+    Grouped(Bounds<D, Affine<D>>),
+    /// One query at a time, on quadratic minorants (the row minima).
+    Single(Bounds<D, Quad<D>>),
 }
 
 /// For the elements `which` of `from` only: the cells of `to` with C − pot ≤ the element's own
