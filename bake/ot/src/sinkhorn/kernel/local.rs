@@ -4,7 +4,7 @@
 use super::super::hierarchy::Hierarchy;
 use super::bounds::{bounds, Affine, Bounds};
 use super::search::search_some;
-use super::sparse::merge_lists_in_place;
+use super::sparse::merge_pairs_in_place;
 use super::Kernel;
 use crate::cost;
 use crate::Wrap;
@@ -137,16 +137,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     }
     // Rows are the old lists merged with the new pairs (both sorted), in the kernel's own arrays,
     // then valued for the new (f, g).
-    let mut starts = vec![0usize; m + 1];
-    for &(i, _) in &extra {
-        starts[i as usize + 1] += 1;
-    }
-    for i in 0..m {
-        starts[i + 1] += starts[i];
-    }
-    merge_lists_in_place(&mut kern.row_ptr, &mut kern.col, Some(&mut kern.k), |i| {
-        extra[starts[i]..starts[i + 1]].iter().map(|e| e.1)
-    });
+    merge_pairs_in_place(&mut kern.row_ptr, &mut kern.col, Some(&mut kern.k), &extra);
     let f_then = std::mem::replace(&mut kern.f, f);
     kern.revalue(xs, ys, (&f_then, g_then), g, eps, wrap);
     Some(Local::Built(rows.len(), cols.len()))

@@ -7,14 +7,15 @@
 //! * column test: C_ij − f_i ≤ min_i' (C_i'j − f_i') + θε,
 //!
 //! where f_i is set to the row minimum (the hard c-transform of g), so every kept row entry is in
-//! [e^−θ, 1] and every row holds its best column. With that f the row test implies the column test
-//! (C_ij − f_i ≥ g_j for all pairs, so the column minimum is at least g_j), so a build searches each
-//! row only for its minimum and each column with the margin θε. Dropped entries are below e^−θ
-//! relative to the best entry of both their row and their column. The tests are *exact* for the
-//! given potentials, not heuristics: each is a branch-and-bound search down the other cloud's
-//! [`Hierarchy`], pruning a cell when |x − box|² − max(potential in the cell) exceeds the current
-//! threshold, which is a lower bound of C − potential for every descendant because the box holds all
-//! descendant positions.
+//! [e^−θ, 1] and every row holds its best column. With that f the row test implies the column
+//! test (C_ij − f_i ≥ g_j for all pairs, so the column minimum is at least g_j), so a build
+//! searches each row only for its minimum and each column with the margin θε. Dropped entries are
+//! below e^−θ relative to the best entry of both their row and their column. The tests are *exact*
+//! for the given potentials, not heuristics: the row minima are branch-and-bound searches down the
+//! target's [`Hierarchy`], pruning a cell when a lower bound of C − potential over its descendants
+//! (from the cell's box and a minorant of the potential) exceeds the current threshold; the column
+//! test is one walk down both hierarchies at once, pruning pairs of cells likewise
+//! ([`pattern`]).
 //!
 //! On the torus (`Wrap::Periodic`) C is the squared distance to the nearest image, and a cell's bound
 //! is the smallest of the bounds for the query's images `x − m` that can be nearest (per axis `x_k`
@@ -26,12 +27,14 @@
 //! chunks written in order, so the kernel's bytes do not depend on the thread count.
 //!
 //! Here: the [`Kernel`] and its whole [`build`]; `bounds` (lower bounds of a potential over the
-//! cells, affine or quadratic), `search` (the branch-and-bound searches), `local` (rebuilding only
-//! the rows and columns that moved) and `sparse` (concatenating, merging and transposing sparse
-//! lists in fixed chunks).
+//! cells, affine or quadratic), `search` (the branch-and-bound searches one query at a time, and
+//! the row minima), `pattern` (the column test's walk over both clouds), `local` (rebuilding only
+//! the rows and columns that moved) and `sparse` (filtering, merging and transposing sparse lists
+//! in fixed chunks).
 
 mod bounds;
 mod local;
+mod pattern;
 mod search;
 mod sparse;
 
@@ -44,7 +47,7 @@ use super::hierarchy::{Hierarchy, Level};
 use crate::cost;
 use crate::Wrap;
 use rayon::prelude::*;
-use search::search_all;
+use search::row_minima;
 use sparse::{merge_lists_in_place, transpose};
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
@@ -195,16 +198,14 @@ pub(super) fn build<const D: usize>(
     // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too. A search with margin 0 finds
     // only the minimizers, and halves the cost of a build.
     let t0 = std::time::Instant::now();
-    let (rptr, ridx, f) = search_all(xs, tgt, level, g, 0.0, wrap, max_pairs)?;
+    let (rptr, ridx, f) = row_minima(xs, tgt, level, g, wrap, max_pairs)?;
     let t1 = std::time::Instant::now();
-    // Column test against f.
-    let (cptr, cidx, _) = search_all(ys, src, level, &f, margin, wrap, max_pairs)?;
+    // Column test against f, as rows: the kernel's pattern.
+    let (mut row_ptr, mut col) =
+        pattern::column_test(src, tgt, level, &f, g, margin, wrap, max_pairs)?;
     let t2 = std::time::Instant::now();
-    // Column-test pairs as rows: the kernel's pattern. Every row-test pair is among them (see
-    // above) but for rounding; any that is not is merged in, in place. Then the values, into the
-    // one new array: the pattern's transient copies were the whole build's peak memory.
-    let (mut row_ptr, mut col) = transpose(&cptr, &cidx, xs.len());
-    drop((cptr, cidx));
+    // Every row-test pair is among them (see above) but for rounding; any that is not is merged
+    // in, in place. Then the values, into the one new array.
     merge_lists_in_place(&mut row_ptr, &mut col, None, |i| {
         ridx[rptr[i]..rptr[i + 1]].iter().copied()
     });

@@ -10,13 +10,88 @@ use super::CHUNK;
 use rayon::prelude::*;
 
 /// Row pointers from list lengths.
-fn pointers(lens: Vec<usize>) -> Vec<usize> {
+pub(super) fn pointers(lens: impl ExactSizeIterator<Item = usize>) -> Vec<usize> {
     let mut ptr = Vec::with_capacity(lens.len() + 1);
     ptr.push(0);
     for l in lens {
         ptr.push(ptr.last().unwrap() + l);
     }
     ptr
+}
+
+/// Keeps the entries j of list i of (`ptr`, `idx`) for which `keep(i, j)`, in place: every fixed
+/// chunk of lists is filtered within its own range in parallel, then the chunks are moved together
+/// and the array shrunk to what is left.
+pub(super) fn filter_lists(
+    ptr: &mut Vec<usize>,
+    idx: &mut Vec<u32>,
+    keep: impl Fn(usize, u32) -> bool + Sync,
+) {
+    let m = ptr.len() - 1;
+    let mut parts = Vec::with_capacity(m.div_ceil(CHUNK));
+    let mut rest = &mut idx[..];
+    for c in 0..m.div_ceil(CHUNK) {
+        let (a, b) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
+        let (part, r) = std::mem::take(&mut rest).split_at_mut(ptr[b] - ptr[a]);
+        rest = r;
+        parts.push((a, b, part));
+    }
+    let old = &*ptr;
+    // Per chunk, its lists' new lengths.
+    let kept: Vec<Vec<usize>> = parts
+        .into_par_iter()
+        .map(|(a, b, part)| {
+            let base = old[a];
+            let mut w = 0;
+            (a..b)
+                .map(|i| {
+                    let start = w;
+                    for r in old[i] - base..old[i + 1] - base {
+                        let j = part[r];
+                        if keep(i, j) {
+                            part[w] = j;
+                            w += 1;
+                        }
+                    }
+                    w - start
+                })
+                .collect()
+        })
+        .collect();
+    let mut w = 0;
+    for (c, lens) in kept.iter().enumerate() {
+        let a = old[c * CHUNK];
+        let n: usize = lens.iter().sum();
+        idx.copy_within(a..a + n, w);
+        w += n;
+    }
+    idx.truncate(w);
+    idx.shrink_to_fit();
+    let lens: Vec<usize> = kept.into_iter().flatten().collect();
+    *ptr = pointers(lens.into_iter());
+}
+
+/// [`merge_lists_in_place`] of `pairs` (list, entry), sorted, into the lists of (`ptr`, `idx`).
+pub(super) fn merge_pairs_in_place(
+    ptr: &mut Vec<usize>,
+    idx: &mut Vec<u32>,
+    vals: Option<&mut Vec<f32>>,
+    pairs: &[(u32, u32)],
+) {
+    if pairs.is_empty() {
+        return;
+    }
+    let m = ptr.len() - 1;
+    let mut starts = vec![0usize; m + 1];
+    for &(i, _) in pairs {
+        starts[i as usize + 1] += 1;
+    }
+    for i in 0..m {
+        starts[i + 1] += starts[i];
+    }
+    merge_lists_in_place(ptr, idx, vals, |i| {
+        pairs[starts[i]..starts[i + 1]].iter().map(|e| e.1)
+    });
 }
 
 /// `f(i, values of list i)` for every list of (`ptr`, `vals`), in place, in parallel over fixed
@@ -150,7 +225,7 @@ pub(super) fn merge_lists_in_place<'a, I>(
         .map(|i| union(&idx[ptr[i]..ptr[i + 1]], new(i)).count())
         .collect();
     let m = lens.len();
-    let new_ptr = pointers(lens);
+    let new_ptr = pointers(lens.into_iter());
     let total = new_ptr[m];
     debug_assert!(total >= idx.len());
     idx.reserve_exact(total - idx.len());

@@ -306,12 +306,14 @@ fn lists_merge_in_place_into_their_unions() {
     }
 }
 
-/// The grouped column search ([`search::search_all`] with a margin) keeps exactly the cells a dense
-/// scan keeps, with the same minima, in 3D on the cube and on the torus, at the point level and
-/// at a cell level, for a potential with a steep slope and curvature (what the groups' fitted
-/// plane must absorb) and with noise (what it cannot).
+/// The row minima ([`search::row_minima`]) and the column test's walk over both clouds
+/// ([`pattern::column_test`]) keep exactly what dense scans keep, in 3D on the cube and on the
+/// torus, at the point level and at a cell level, for a potential with a steep slope and curvature
+/// and with noise: the minima and their minimizers, and for every column the rows within the
+/// margin of its minimum. Once for f the row minima of g (the walk finds nearly every column), once
+/// for f off by more than the margin (most columns are searched alone).
 #[test]
-fn grouped_search_equals_dense_scan_in_3d() {
+fn row_minima_and_column_test_equal_dense_scans_in_3d() {
     let cloud = |seed: f64, n: usize| -> Vec<[f64; 3]> {
         (0..n)
             .map(|i| {
@@ -324,42 +326,127 @@ fn grouped_search_equals_dense_scan_in_3d() {
             })
             .collect()
     };
+    let noise = |i: usize| ((i as f64 * 12.9898).sin() * 43758.5453).fract();
     let (a, b) = (cloud(0.3, 1500), cloud(0.7, 1300));
     let grid = Grid::new(&a, &b);
     let (hs, ht) = (Hierarchy::new(&a, &grid, 4), Hierarchy::new(&b, &grid, 4));
     for wrap in [Wrap::Clamp, Wrap::Periodic] {
         for level in [3, hs.point_level()] {
             let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
-            let pot: Vec<f64> = xs
+            let g: Vec<f64> = ys
                 .pos
                 .iter()
                 .enumerate()
-                .map(|(i, x)| {
-                    1.4 * x[0] * x[0] - 0.8 * x[1] * x[2]
-                        + 0.5 * x[2]
-                        + 2e-3 * ((i as f64 * 12.9898).sin() * 43758.5453).fract()
-                })
+                .map(|(j, y)| 1.4 * y[0] * y[0] - 0.8 * y[1] * y[2] + 0.5 * y[2] + 2e-3 * noise(j))
                 .collect();
-            // Margin 0: the single searches on quadratic minorants (the row minima); above 0 the
-            // grouped ones on affine minorants.
-            for margin in [0.0, 1e-3, 2e-2] {
-                let (ptr, idx, mins) =
-                    search::search_all(ys, &hs, level, &pot, margin, wrap, usize::MAX).unwrap();
+            let (ptr, idx, f) = search::row_minima(xs, &ht, level, &g, wrap, usize::MAX).unwrap();
+            for i in 0..xs.len() {
+                let vals: Vec<f64> = (0..ys.len())
+                    .map(|j| cost::sq(wrap, &xs.pos[i], &ys.pos[j]) - g[j])
+                    .collect();
+                let min = vals.iter().copied().fold(f64::INFINITY, f64::min);
+                let want: Vec<u32> = (0..ys.len() as u32)
+                    .filter(|&j| vals[j as usize] == min)
+                    .collect();
+                assert_eq!(f[i], min, "{wrap:?} level {level} row {i}");
+                assert_eq!(
+                    &idx[ptr[i]..ptr[i + 1]],
+                    &want[..],
+                    "{wrap:?} level {level} row {i}"
+                );
+            }
+            let off: Vec<f64> = f
+                .iter()
+                .enumerate()
+                .map(|(i, v)| v + 0.05 * noise(i))
+                .collect();
+            for (f, margin) in [(&f, 1e-3), (&f, 2e-2), (&off, 1e-3)] {
+                let (ptr, rows) =
+                    pattern::column_test(&hs, &ht, level, f, &g, margin, wrap, usize::MAX).unwrap();
+                let mut want: Vec<Vec<u32>> = vec![Vec::new(); xs.len()];
                 for j in 0..ys.len() {
                     let vals: Vec<f64> = (0..xs.len())
-                        .map(|i| cost::sq(wrap, &ys.pos[j], &xs.pos[i]) - pot[i])
+                        .map(|i| cost::sq(wrap, &ys.pos[j], &xs.pos[i]) - f[i])
                         .collect();
                     let min = vals.iter().copied().fold(f64::INFINITY, f64::min);
-                    let want: Vec<u32> = (0..xs.len() as u32)
-                        .filter(|&i| vals[i as usize] <= min + margin)
-                        .collect();
-                    assert_eq!(mins[j], min, "{wrap:?} level {level} query {j}");
+                    for i in 0..xs.len() {
+                        if vals[i] <= min + margin {
+                            want[i].push(j as u32);
+                        }
+                    }
+                }
+                for i in 0..xs.len() {
                     assert_eq!(
-                        &idx[ptr[j]..ptr[j + 1]],
-                        &want[..],
-                        "{wrap:?} level {level} margin {margin} query {j}"
+                        &rows[ptr[i]..ptr[i + 1]],
+                        &want[i][..],
+                        "{wrap:?} level {level} margin {margin} row {i}"
                     );
                 }
+            }
+        }
+    }
+}
+
+/// The walk's cell-pair bound ([`pattern::pair_bound`]) is below C − f − g for every pair of the
+/// two cells' points, on the cube and on the torus (cells near each other, far apart and across the
+/// torus's seam), and equal to it, but for rounding, when each cell is one point.
+#[test]
+fn pair_bound_is_below_every_pair_and_exact_for_points() {
+    use bounds::{Affine, Minorant};
+    let noise = |i: usize| ((i as f64 * 12.9898).sin() * 43758.5453).fract();
+    let cell = |seed: usize, at: [f64; 3], w: f64, n: usize| -> Vec<[f64; 3]> {
+        (0..n)
+            .map(|i| std::array::from_fn(|k| at[k] + w * noise(seed * 1000 + 3 * i + k)))
+            .collect()
+    };
+    let pot = |p: &[f64; 3], i: usize| {
+        0.7 * p[0] * p[0] - 0.4 * p[1] * p[2] + 0.3 * p[0] + 1e-3 * noise(i)
+    };
+    let sized = |ps: &[[f64; 3]]| {
+        let lo: [f64; 3] =
+            std::array::from_fn(|k| ps.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
+        let hi: [f64; 3] =
+            std::array::from_fn(|k| ps.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
+        (lo, hi)
+    };
+    for wrap in [Wrap::Clamp, Wrap::Periodic] {
+        for (t, (at_p, at_j, w, n)) in [
+            ([0.3, 0.4, 0.5], [0.32, 0.41, 0.47], 0.05, 20),
+            ([0.1, 0.2, 0.3], [0.6, 0.7, 0.2], 0.1, 30),
+            ([0.02, 0.5, 0.97], [0.9, 0.55, 0.03], 0.06, 25),
+            ([0.4, 0.4, 0.4], [0.45, 0.38, 0.41], 0.0, 1),
+            ([0.01, 0.99, 0.5], [0.97, 0.02, 0.52], 0.0, 1),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let (ps, js) = (cell(2 * t, at_p, w, n), cell(2 * t + 1, at_j, w, n));
+            let f: Vec<f64> = ps.iter().enumerate().map(|(i, p)| pot(p, i)).collect();
+            let g: Vec<f64> = js.iter().enumerate().map(|(i, y)| -pot(y, i + 7)).collect();
+            let norm = |p: &[f64; 3]| p.iter().map(|v| v * v).sum::<f64>();
+            let hs: Vec<f64> = ps.iter().zip(&f).map(|(p, v)| norm(p) - v).collect();
+            let ht: Vec<f64> = js.iter().zip(&g).map(|(y, v)| norm(y) - v).collect();
+            let (mp, mj) = (Affine::fit(&ps, &hs), Affine::fit(&js, &ht));
+            let (bp, bj) = (sized(&ps), sized(&js));
+            let bound = pattern::pair_bound(
+                &mp,
+                (&bp.0, &bp.1),
+                &mj,
+                (&bj.0, &bj.1),
+                pattern::shifts(wrap),
+            );
+            let mut min = f64::INFINITY;
+            for (p, fp) in ps.iter().zip(&f) {
+                for (y, gy) in js.iter().zip(&g) {
+                    min = min.min(cost::sq(wrap, p, y) - fp - gy);
+                }
+            }
+            assert!(bound <= min, "{wrap:?} case {t}: bound {bound} above {min}");
+            if n == 1 {
+                assert!(
+                    (min - bound).abs() < 1e-9,
+                    "{wrap:?} case {t}: {bound} vs {min}"
+                );
             }
         }
     }
