@@ -33,11 +33,12 @@ const SNAP_PER_POINT: u64 = 160;
 /// peaks at n = 3000 (`tests/memory.rs`).
 const SINKHORN_PER_POINT: u64 = 350;
 /// Sinkhorn, per kernel pair at the peak: the kernel in row form (`col` u32, `k` f32, 8 bytes) and,
-/// during a whole rebuild (the old kernel is freed first), the column-test lists and their
-/// transpose (which becomes the kernel's pattern), and the search's per-chunk lists; local
-/// rebuilds grow the kernel in place, and the auction writes its reduced costs over its values.
-/// Measured since the kernels grow in place (D146) the peaks are about a quarter lower than the
-/// figure was fitted on: it is an upper estimate until re-fitted.
+/// during a whole rebuild (the old kernel is freed first), the column test's walk: its pairs, 4
+/// bytes each in a band about a fifth wider than the kernel's, filtered in place into the
+/// kernel's pattern (D158), and both clouds' cell bounds; local rebuilds grow the kernel in place,
+/// and the auction writes its reduced costs over its values. Measured since the kernels grow in
+/// place (D146) the peaks are about a quarter lower than the figure was fitted on: it is an upper
+/// estimate until re-fitted.
 const SINKHORN_PER_PAIR: u64 = 24;
 /// Sinkhorn, once per solve: the per-thread chunk buffers and the allocator's slack, which small
 /// solves see as a few MiB (a 3000-point 3D solve peaks at 7.2 MiB of resident memory).

@@ -33,7 +33,7 @@ use super::sparse::{filter_lists, merge_pairs_in_place, pointers};
 use crate::cost;
 use crate::Wrap;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 /// The headroom σ of the walk's threshold, as a fraction of the margin θε: a column whose minimum
 /// is more than σε above g_j is searched alone. On the 1M cow's final build all but 263 of the
@@ -78,7 +78,8 @@ impl<const D: usize> Side<'_, D> {
 /// C_ij − f_i ≤ min_i' (C_i'j − f_i') + `margin`, C_ij computed as `cost::sq(y_j, x_i)` (the same
 /// sets, bit for bit, as a search down the source for every column). `f` are the row minima of `g`.
 /// Returns `None` past `max_pairs` pairs (so that memory stays bounded when the blur is far above
-/// the local spacing), whatever the thread count.
+/// the local spacing), or when the walk's wider band holds more than 4 × `max_pairs`, whatever the
+/// thread count.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn column_test<const D: usize>(
     src: &Hierarchy<D>,
@@ -107,8 +108,11 @@ pub(super) fn column_test<const D: usize>(
     let lowest: Vec<AtomicU64> = (0..ys.len())
         .map(|_| AtomicU64::new(f64::INFINITY.to_bits()))
         .collect();
-    // The walk's pairs are at most a band of 1/θ wider than the test's (in reduced cost).
-    let cap = max_pairs.saturating_add(max_pairs / 2);
+    // The walk's band is a superset of the test's pairs: about a fifth more when f is the row
+    // minima of g (a band of (θ + σ)ε instead of θε), more where columns go alone. Its memory (4
+    // bytes a pair) is bounded by refusing past 4 × `max_pairs` of them, within the 24 bytes a
+    // kept pair is budgeted for a whole build.
+    let cap = max_pairs.saturating_mul(4);
     let norm = |p: &[f64; D]| p.iter().map(|v| v * v).sum::<f64>();
     let hs: Vec<f64> = xs
         .pos
@@ -195,7 +199,7 @@ pub(super) fn column_test<const D: usize>(
     let alone: Vec<u32> = (0..ys.len() as u32)
         .filter(|&j| keep[j as usize] == f64::NEG_INFINITY)
         .collect();
-    let extra = search_alone(&s, ys, f, &alone, margin, wrap);
+    let extra = search_alone(&s, ys, f, &alone, margin, wrap, max_pairs)?;
     let t2 = std::time::Instant::now();
     drop(s);
     let mut ptr = pointers(lens.iter().map(|&l| l as usize));
@@ -253,7 +257,8 @@ struct Found {
 }
 
 /// The columns `which` searched one at a time down the source `s`: each one's rows within `margin`
-/// of its minimum, as (row, column) pairs sorted by row, then column.
+/// of its minimum, as (row, column) pairs sorted by row, then column; `None` past `max_pairs`
+/// pairs (whatever the thread count: the count only grows).
 fn search_alone<const D: usize>(
     s: &Side<'_, D>,
     ys: &Level<D>,
@@ -261,13 +266,18 @@ fn search_alone<const D: usize>(
     which: &[u32],
     margin: f64,
     wrap: Wrap,
-) -> Vec<(u32, u32)> {
+    max_pairs: usize,
+) -> Option<Vec<(u32, u32)>> {
+    let count = AtomicUsize::new(0);
     let mut pairs: Vec<(u32, u32)> = which
         .par_chunks(super::CHUNK)
         .flat_map_iter(|chunk| {
             let (mut stack, mut found) = (Vec::new(), Vec::new());
             let mut out = Vec::new();
             for &j in chunk {
+                if count.load(Ordering::Relaxed) > max_pairs {
+                    break;
+                }
                 found.clear();
                 search(
                     s.h,
@@ -282,13 +292,17 @@ fn search_alone<const D: usize>(
                     None,
                     None,
                 );
+                count.fetch_add(found.len(), Ordering::Relaxed);
                 out.extend(found.iter().map(|e| (e.0, j)));
             }
             out
         })
         .collect();
+    if count.into_inner() > max_pairs {
+        return None;
+    }
     pairs.par_sort_unstable();
-    pairs
+    Some(pairs)
 }
 
 /// A task's buffers, reused.

@@ -310,8 +310,8 @@ fn lists_merge_in_place_into_their_unions() {
 /// ([`pattern::column_test`]) keep exactly what dense scans keep, in 3D on the cube and on the
 /// torus, at the point level and at a cell level, for a potential with a steep slope and curvature
 /// and with noise: the minima and their minimizers, and for every column the rows within the
-/// margin of its minimum. Once for f the row minima of g (the walk finds nearly every column), once
-/// for f off by more than the margin (most columns are searched alone).
+/// margin of its minimum, and the pair limit. Once for f the row minima of g (the walk finds nearly
+/// every column), once for f off by more than the margin (most columns are searched alone).
 #[test]
 fn row_minima_and_column_test_equal_dense_scans_in_3d() {
     let cloud = |seed: f64, n: usize| -> Vec<[f64; 3]> {
@@ -382,6 +382,14 @@ fn row_minima_and_column_test_equal_dense_scans_in_3d() {
                         "{wrap:?} level {level} margin {margin} row {i}"
                     );
                 }
+                // The pair limit holds exactly: refused one pair below the count, also where
+                // most pairs come from columns searched alone.
+                let run = |max| pattern::column_test(&hs, &ht, level, f, &g, margin, wrap, max);
+                assert!(
+                    run(rows.len() - 1).is_none(),
+                    "{wrap:?} level {level} {margin}"
+                );
+                assert!(run(rows.len()).is_some(), "{wrap:?} level {level} {margin}");
             }
         }
     }
