@@ -2,7 +2,7 @@
 
 use super::hierarchy::Hierarchy;
 use super::kernel::{self, Kernel};
-use super::potentials::absorbed;
+use super::potentials::{absorbed, hard_transform};
 use super::state::{StageLog, State, Support};
 use super::{SinkhornSettings, CHUNK, NAME};
 use crate::{Report, SolveError, Wrap};
@@ -45,10 +45,12 @@ pub(super) fn build_kernel<const D: usize>(
     settings: &SinkhornSettings,
     wrap: Wrap,
     spacing: f64,
+    upper: Option<&[f64]>,
 ) -> Result<Kernel, SolveError> {
     let rows = hs.levels[level].len().max(1);
     let limit = pair_limit(rows);
-    kernel::build(hs, ht, level, g, eps, settings.truncate, wrap, limit).ok_or_else(|| {
+    let truncate = settings.truncate;
+    kernel::build(hs, ht, level, g, eps, truncate, wrap, limit, upper).ok_or_else(|| {
         let blur = eps.sqrt();
         SolveError::InvalidSettings {
             solver: NAME,
@@ -600,8 +602,21 @@ impl Rebuild {
             Some(kernel::Local::TooMany) | None => {
                 // Past the pair limit the whole build decides (and reports it). The old kernel
                 // goes first: two whole kernels at once were the solve's peak memory.
+                // The old kernel's rows bound the new row minima from above.
+                let (xs, ys) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
+                let upper = hard_transform(&st.kernel.row_ptr, &st.kernel.col, xs, ys, &g, wrap);
                 st.kernel = Kernel::default();
-                st.kernel = build_kernel(hs, ht, st.level, &g, st.eps, settings, wrap, spacing)?;
+                st.kernel = build_kernel(
+                    hs,
+                    ht,
+                    st.level,
+                    &g,
+                    st.eps,
+                    settings,
+                    wrap,
+                    spacing,
+                    Some(&upper),
+                )?;
                 st.f0 = st.kernel.f.clone();
                 st.g0 = g.clone();
                 st.support = Support::Whole;

@@ -16,7 +16,7 @@ pub(super) fn absorbed(p: &[f64], s: &[f64], mass: &[f64], eps: f64) -> Vec<f64>
 }
 
 /// The hard c-transform over a sparse support: for every row i of (`ptr`, `idx`),
-/// min over its entries j of |x_i − y_j|² − pot_j.
+/// min over its entries j of |x_i − y_j|² − pot_j (∞ for an empty row).
 pub(super) fn hard_transform<const D: usize>(
     ptr: &[usize],
     idx: &[u32],
@@ -25,12 +25,72 @@ pub(super) fn hard_transform<const D: usize>(
     pot: &[f64],
     wrap: Wrap,
 ) -> Vec<f64> {
+    hard_transform_best(ptr, idx, x, y, pot, wrap).0
+}
+
+/// [`hard_transform`] and, per row, the first entry attaining its minimum (`u32::MAX` for an empty
+/// row).
+pub(super) fn hard_transform_best<const D: usize>(
+    ptr: &[usize],
+    idx: &[u32],
+    x: &[[f64; D]],
+    y: &[[f64; D]],
+    pot: &[f64],
+    wrap: Wrap,
+) -> (Vec<f64>, Vec<u32>) {
     (0..ptr.len() - 1)
         .into_par_iter()
         .map(|i| {
             idx[ptr[i]..ptr[i + 1]]
                 .iter()
-                .map(|&j| sq(wrap, &x[i], &y[j as usize]) - pot[j as usize])
+                .map(|&j| (sq(wrap, &x[i], &y[j as usize]) - pot[j as usize], j))
+                .fold(
+                    (f64::INFINITY, u32::MAX),
+                    |a, b| if b.0 < a.0 { b } else { a },
+                )
+        })
+        .unzip()
+}
+
+/// Candidates per row that [`upper_from_parents`] evaluates at most: a cell's descendants beyond
+/// this many are sampled evenly.
+const CANDIDATES: usize = 32;
+
+/// Upper bounds of the row minima min_j (C(x_i, y_j) − `g`_j) on level `to` of the source, from a
+/// coarser level `from` where every source cell's best target cell is known (`best`, `u32::MAX`
+/// for none): row i's bound is the smallest C − g over the descendants on `to` of its ancestor's
+/// best cell (∞ when there is none). Any column gives a bound; these are near the row's own best,
+/// which is what makes the column test's walk narrow ([`super::kernel::build`]).
+pub(super) fn upper_from_parents<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    (from, to): (usize, usize),
+    best: &[u32],
+    g: &[f64],
+    wrap: Wrap,
+) -> Vec<f64> {
+    let (xs, ys) = (&hs.levels[to].pos, &ht.levels[to].pos);
+    (0..xs.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut anc = i;
+            for l in (from + 1..=to).rev() {
+                anc = hs.levels[l].parent[anc] as usize;
+            }
+            let d = best[anc];
+            if d == u32::MAX {
+                return f64::INFINITY;
+            }
+            // The descendants of a cell are a contiguous range on every finer level.
+            let (mut a, mut b) = (d as usize, d as usize + 1);
+            for l in from..to {
+                let child = &ht.levels[l].child;
+                (a, b) = (child[a] as usize, child[b] as usize);
+            }
+            let step = (b - a).div_ceil(CANDIDATES).max(1);
+            (a..b)
+                .step_by(step)
+                .map(|j| sq(wrap, &xs[i], &ys[j]) - g[j])
                 .fold(f64::INFINITY, f64::min)
         })
         .collect()

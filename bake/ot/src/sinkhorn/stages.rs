@@ -3,7 +3,9 @@
 //! tolerance.
 
 use super::iterate::{build_kernel, iterate};
-use super::potentials::{absorbed, extrapolate, hard_transform, shrink_offset};
+use super::potentials::{
+    absorbed, extrapolate, hard_transform, hard_transform_best, shrink_offset, upper_from_parents,
+};
 use super::report::{report_of, total_iterations};
 use super::schedule::Plan;
 use super::settings::{ASSIGNMENT_TOLERANCE, STAGE_TOLERANCE};
@@ -49,9 +51,12 @@ pub(super) fn run<const D: usize>(
         };
         // Target potential on the new level.
         let tp = std::time::Instant::now();
-        let g = match &state {
-            None => vec![0.0; ht.levels[level].len()],
-            Some(st) => next_potential(plan, st, level, eps, wrap),
+        let (g, upper) = match &state {
+            None => (vec![0.0; ht.levels[level].len()], None),
+            Some(st) => {
+                let (g, upper) = next_potential(plan, st, level, eps, wrap);
+                (g, Some(upper))
+            }
         };
         if std::env::var_os("OTBAKE_TRACE").is_some() && state.is_some() {
             eprintln!("  next potential {:.2}s", tp.elapsed().as_secs_f64());
@@ -59,7 +64,8 @@ pub(super) fn run<const D: usize>(
         // The previous stage's kernel is not needed any more: free it before building the next.
         drop(state.take());
         let tk = std::time::Instant::now();
-        let kernel = build_kernel(hs, ht, level, &g, eps, settings, wrap, spacing)?;
+        let upper = upper.as_deref();
+        let kernel = build_kernel(hs, ht, level, &g, eps, settings, wrap, spacing, upper)?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("  kernel build {:.2}s", tk.elapsed().as_secs_f64());
         }
@@ -115,14 +121,16 @@ pub(super) fn run<const D: usize>(
 /// The target potential a stage on `level` at scale `eps` starts from, made from the previous
 /// stage's converged state `st`: on the same level, the hard c-transform of its source potential
 /// with the ε offset scaled ([`shrink_offset`]); on a finer level, the same for the source
-/// potential, carried down by a soft c-transform ([`extrapolate`]).
+/// potential, carried down by a soft c-transform ([`extrapolate`]). With it, upper bounds of the
+/// new kernel's row minima: C − g on the old kernel's rows, or on the descendants of each old
+/// row's best column ([`upper_from_parents`]).
 fn next_potential<const D: usize>(
     plan: &Plan<D>,
     st: &State,
     level: usize,
     eps: f64,
     wrap: Wrap,
-) -> Vec<f64> {
+) -> (Vec<f64>, Vec<f64>) {
     let (hs, ht) = (&plan.hs, &plan.ht);
     let g_old = absorbed(&st.g, &st.v, &ht.levels[st.level].mass, st.eps);
     let f_old = absorbed(&st.kernel.f, &st.u, &hs.levels[st.level].mass, st.eps);
@@ -132,12 +140,16 @@ fn next_potential<const D: usize>(
     if level == st.level {
         let (sx, sy) = (&hs.levels[level].pos, &ht.levels[level].pos);
         let g_hard = hard_transform(&col_ptr, &row, sy, sx, &f_old, wrap);
-        shrink_offset(&g_old, &g_hard, ratio)
+        let g = shrink_offset(&g_old, &g_hard, ratio);
+        let (ptr, col) = (&st.kernel.row_ptr, &st.kernel.col);
+        let upper = hard_transform(ptr, col, sx, sy, &g, wrap);
+        (g, upper)
     } else {
         let (sx, sy) = (&hs.levels[st.level].pos, &ht.levels[st.level].pos);
-        let f_hard = hard_transform(&st.kernel.row_ptr, &st.kernel.col, sx, sy, &g_old, wrap);
+        let (ptr, col) = (&st.kernel.row_ptr, &st.kernel.col);
+        let (f_hard, best) = hard_transform_best(ptr, col, sx, sy, &g_old, wrap);
         let f_pred = shrink_offset(&f_old, &f_hard, ratio);
-        extrapolate(
+        let g = extrapolate(
             hs,
             ht,
             (st.level, level),
@@ -145,7 +157,9 @@ fn next_potential<const D: usize>(
             &f_pred,
             eps,
             wrap,
-        )
+        );
+        let upper = upper_from_parents(hs, ht, (st.level, level), &best, &g, wrap);
+        (g, upper)
     }
 }
 

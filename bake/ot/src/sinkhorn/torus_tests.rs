@@ -2,7 +2,7 @@
 //! (the bounds over the query's images are valid and the search misses nothing).
 
 use super::hierarchy::{Grid, Hierarchy};
-use super::kernel::build;
+use super::kernel::build_three_ways;
 use crate::cost::sq;
 use otbake_formats::Wrap;
 
@@ -41,7 +41,7 @@ fn torus_truncation_equals_dense_scan() {
             })
             .collect();
         let (eps, theta) = (1e-3, 8.0);
-        let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Periodic, usize::MAX).unwrap();
+        let kern = build_three_ways(&hs, &ht, level, &g, eps, theta, Wrap::Periodic, 4.0 * eps);
         let c = |i: usize, j: usize| sq(Wrap::Periodic, &xs.pos[i], &ys.pos[j]);
         let f: Vec<f64> = (0..xs.len())
             .map(|i| {

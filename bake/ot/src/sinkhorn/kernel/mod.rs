@@ -11,11 +11,11 @@
 //! test (C_ij − f_i ≥ g_j for all pairs, so the column minimum is at least g_j), so a build
 //! searches each row only for its minimum and each column with the margin θε. Dropped entries are
 //! below e^−θ relative to the best entry of both their row and their column. The tests are *exact*
-//! for the given potentials, not heuristics: the row minima are branch-and-bound searches down the
-//! target's [`Hierarchy`], pruning a cell when a lower bound of C − potential over its descendants
-//! (from the cell's box and a minorant of the potential) exceeds the current threshold; the column
-//! test is one walk down both hierarchies at once, pruning pairs of cells likewise
-//! ([`pattern`]).
+//! for the given potentials, not heuristics: the column test is one walk down both hierarchies at
+//! once, pruning a pair of cells when a lower bound of C − f − g over their points (from the cells'
+//! boxes and minorants of the potentials) exceeds the threshold ([`pattern`]); it reads the row
+//! minima off its band when it is given upper bounds of them, and otherwise they are searched
+//! first, down the target's [`Hierarchy`] one row at a time, pruning cells likewise.
 //!
 //! On the torus (`Wrap::Periodic`) C is the squared distance to the nearest image, and a cell's bound
 //! is the smallest of the bounds for the query's images `x − m` that can be nearest (per axis `x_k`
@@ -48,7 +48,7 @@ use crate::cost;
 use crate::Wrap;
 use rayon::prelude::*;
 use search::row_minima;
-use sparse::{merge_lists_in_place, transpose};
+use sparse::transpose;
 
 /// Rows per parallel work item (fixed: the output order never depends on the thread count).
 const CHUNK: usize = 1024;
@@ -179,6 +179,10 @@ pub(super) fn sq<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
 
 /// Builds the truncated kernel of one level for target potential `g` at scale `eps`, keeping pairs
 /// within `theta`·ε of their row's or column's best (see the module docs), in the metric of `wrap`.
+/// `upper`, when given, bounds every row's minimum min_j (C_ij − g_j) from above (the value of a
+/// column the row is likely to be best at, from the previous stage's kernel): the walk of the
+/// column test then finds the row minima too. Without it, or when its band is too wide, the row
+/// minima are searched first. The kernel is the same either way.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn build<const D: usize>(
     src: &Hierarchy<D>,
@@ -189,43 +193,51 @@ pub(super) fn build<const D: usize>(
     theta: f64,
     wrap: Wrap,
     max_pairs: usize,
+    upper: Option<&[f64]>,
 ) -> Option<Kernel> {
     let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
     let margin = theta * eps;
-    // f = row minima (the hard c-transform of g), with each row's best column. The row test needs
-    // no search of its own: with f_i the row minimum, C_ij − f_i ≥ g_j for every pair, so the
-    // column minimum min_i' (C_i'j − f_i') is at least g_j, and a pair within θε of its row's best
-    // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too. A search with margin 0 finds
-    // only the minimizers, and halves the cost of a build.
     let t0 = std::time::Instant::now();
-    let (rptr, ridx, f) = row_minima(xs, tgt, level, g, wrap, max_pairs)?;
+    // With f_i the row minimum, C_ij − f_i ≥ g_j for every pair, so the column minimum
+    // min_i' (C_i'j − f_i') is at least g_j, and a pair within θε of its row's best
+    // (C_ij − f_i ≤ g_j + θε) is within θε of its column's best too: the column test alone is
+    // the pattern.
+    let tried = upper
+        .filter(|u| u.len() == xs.len() && u.iter().all(|v| v.is_finite()))
+        .map(|u| pattern::column_test(src, tgt, level, u, g, margin, wrap, max_pairs));
     let t1 = std::time::Instant::now();
-    // Column test against f, as rows: the kernel's pattern.
-    let (mut row_ptr, mut col) =
-        pattern::column_test(src, tgt, level, &f, g, margin, wrap, max_pairs)?;
+    let how = match &tried {
+        None => "not tried",
+        Some(Ok(_)) => "kept",
+        Some(Err(_)) => "too wide",
+    };
+    let pattern = match tried {
+        Some(Ok(p)) => p,
+        Some(Err(pattern::Refused::Kept)) => return None,
+        // The row minima first (a search with margin 0 finds only the minimizers), then the walk
+        // with the tightest bounds there are.
+        Some(Err(pattern::Refused::Band)) | None => {
+            let (_, _, f) = row_minima(xs, tgt, level, g, wrap, max_pairs)?;
+            pattern::column_test(src, tgt, level, &f, g, margin, wrap, max_pairs).ok()?
+        }
+    };
     let t2 = std::time::Instant::now();
-    // Every row-test pair is among them (see above) but for rounding; any that is not is merged
-    // in, in place. Then the values, into the one new array.
-    merge_lists_in_place(&mut row_ptr, &mut col, None, |i| {
-        ridx[rptr[i]..rptr[i + 1]].iter().copied()
-    });
     let mut kern = Kernel {
-        row_ptr,
-        col,
+        row_ptr: pattern.ptr,
+        col: pattern.cols,
         k: Vec::new(),
         cols: ys.len(),
-        f,
+        f: pattern.f,
     };
-    let t3 = std::time::Instant::now();
     kern.set_values(xs, ys, g, eps, wrap);
     if std::env::var_os("OTBAKE_TRACE").is_some() {
         let s = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64();
         eprintln!(
-            "  build: row minima {:.2}s, column tests {:.2}s, pattern {:.2}s, values {:.2}s",
+            "  build: bounded walk {:.2}s ({}), exact walk {:.2}s, values {:.2}s",
             s(t0, t1),
+            how,
             s(t1, t2),
-            s(t2, t3),
-            t3.elapsed().as_secs_f64()
+            t2.elapsed().as_secs_f64()
         );
     }
     Some(kern)
@@ -233,3 +245,5 @@ pub(super) fn build<const D: usize>(
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+pub(super) use tests::build_three_ways;

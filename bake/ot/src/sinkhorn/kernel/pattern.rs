@@ -11,6 +11,13 @@
 //! exactly the column test for every column whose m_j is within σε of g_j. The few others (a
 //! column no row's minimum is near) are searched alone, as before.
 //!
+//! The same walk finds the row minima f (D159). Given upper bounds u_i ≥ f_i (from the previous
+//! stage's kernel: the value of a column near the row's best), it keeps the wider band
+//! C_ij − u_i ≤ g_j + (θ + σ)ε, which holds every row's minimizers and every pair of the band
+//! above; each task then reads its rows' minima off its band and narrows it to
+//! C_ij − f_i ≤ g_j + (θ + σ)ε before the column minima. With u = f (the row minima searched
+//! first, as a build without bounds does) the narrowing keeps everything.
+//!
 //! A cell pair is pruned with the affine minorants of both sides ([`Affine`]): with
 //! |x|² − f ≥ α_P + β_P·x over the source cell P and |y|² − g ≥ α_J + β_J·y over the target cell J,
 //! C − f − g ≥ α_P + α_J + Σ_k (β_Pk x_k + β_Jk y_k − 2 x_k y_k), bilinear per axis and so
@@ -74,29 +81,51 @@ impl<const D: usize> Side<'_, D> {
     }
 }
 
-/// The column test's pairs as sorted rows (CSR): for every column j, the rows i with
-/// C_ij − f_i ≤ min_i' (C_i'j − f_i') + `margin`, C_ij computed as `cost::sq(y_j, x_i)` (the same
-/// sets, bit for bit, as a search down the source for every column). `f` are the row minima of `g`.
-/// Returns `None` past `max_pairs` pairs (so that memory stays bounded when the blur is far above
-/// the local spacing), or when the walk's wider band holds more than 4 × `max_pairs`, whatever the
-/// thread count.
+/// Why [`column_test`] gave no pattern.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Refused {
+    /// The walk's band, the pairs with C_ij − upper_i − g_j ≤ (θ + σ)ε, holds more than 4 ×
+    /// `max_pairs` (with loose row bounds, a build tries again from the exact row minima).
+    Band,
+    /// The pattern holds more than `max_pairs` pairs.
+    Kept,
+}
+
+/// A whole build's pattern and row offsets.
+pub(super) struct Pattern {
+    /// The pattern as sorted rows (CSR).
+    pub ptr: Vec<usize>,
+    pub cols: Vec<u32>,
+    /// The row minima f_i = min_j (C_ij − g_j), C_ij computed as `cost::sq(x_i, y_j)`.
+    pub f: Vec<f64>,
+}
+
+/// The pattern of a whole build for target potential `g`: f the row minima of g, and for every
+/// column j the rows i with C_ij − f_i ≤ min_i' (C_i'j − f_i') + `margin` (the same sets, bit for
+/// bit, as a search down the source for every column), with every row's minimizers (which the
+/// test keeps but for rounding). `upper` bounds the row minima from above (any column's
+/// C_ij − g_j does; the exact minima are the tightest): the walk keeps the pairs with
+/// C_ij − upper_i ≤ g_j + (θ + σ)ε, a band that holds every pair the test needs, reads the row
+/// minima off it, and narrows it to them. Refused past `max_pairs` pairs (so that memory stays
+/// bounded when the blur is far above the local spacing), or when the walk's band holds more than
+/// 4 × `max_pairs`, whatever the thread count.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn column_test<const D: usize>(
     src: &Hierarchy<D>,
     tgt: &Hierarchy<D>,
     level: usize,
-    f: &[f64],
+    upper: &[f64],
     g: &[f64],
     margin: f64,
     wrap: Wrap,
     max_pairs: usize,
-) -> Option<(Vec<usize>, Vec<u32>)> {
+) -> Result<Pattern, Refused> {
     let (xs, ys) = (&src.levels[level], &tgt.levels[level]);
     let reach = margin * (1.0 + HEADROOM);
     let s = Side {
         h: src,
         level,
-        bnd: bounds(src, level, f),
+        bnd: bounds(src, level, upper),
     };
     let t = Side {
         h: tgt,
@@ -108,16 +137,16 @@ pub(super) fn column_test<const D: usize>(
     let lowest: Vec<AtomicU64> = (0..ys.len())
         .map(|_| AtomicU64::new(f64::INFINITY.to_bits()))
         .collect();
-    // The walk's band is a superset of the test's pairs: about a fifth more when f is the row
-    // minima of g (a band of (θ + σ)ε instead of θε), more where columns go alone. Its memory (4
-    // bytes a pair) is bounded by refusing past 4 × `max_pairs` of them, within the 24 bytes a
-    // kept pair is budgeted for a whole build.
+    // The walk's band is a superset of the test's pairs: about a fifth more when `upper` is the
+    // row minima (a band of (θ + σ)ε instead of θε), more where columns go alone or the bounds
+    // are loose. Its memory (4 bytes a pair kept, 16 in a task's scratch) is bounded by refusing
+    // past 4 × `max_pairs` of them, counted as they are found.
     let cap = max_pairs.saturating_mul(4);
     let norm = |p: &[f64; D]| p.iter().map(|v| v * v).sum::<f64>();
     let hs: Vec<f64> = xs
         .pos
         .par_iter()
-        .zip(f)
+        .zip(upper)
         .map(|(x, fi)| norm(x) - fi)
         .collect();
     let ht: Vec<f64> = ys
@@ -132,7 +161,7 @@ pub(super) fn column_test<const D: usize>(
         .par_iter()
         .map(norm)
         .chain(ys.pos.par_iter().map(norm))
-        .chain(f.par_iter().map(|v| v.abs()))
+        .chain(upper.par_iter().map(|v| v.abs()))
         .chain(g.par_iter().map(|v| v.abs()))
         .reduce(|| 0.0, f64::max)
         // Points moved by an image shift (the torus) are within 2 of the origin per axis.
@@ -141,10 +170,12 @@ pub(super) fn column_test<const D: usize>(
         } else {
             0.0
         });
+    let band = AtomicUsize::new(0);
     let walk = Walk {
         s: &s,
         t: &t,
-        f,
+        upper,
+        g,
         limit: &limit,
         lowest: &lowest,
         hs: &hs,
@@ -153,6 +184,8 @@ pub(super) fn column_test<const D: usize>(
         reach,
         shifts: shifts(wrap),
         wrap,
+        band: &band,
+        cap,
     };
     let t0 = std::time::Instant::now();
     let tasks = tasks(&s);
@@ -162,6 +195,8 @@ pub(super) fn column_test<const D: usize>(
     // heap, resident, through the rest of the solve (a quarter more peak memory on the 1M cow).
     let mut lens: Vec<u32> = Vec::with_capacity(xs.len());
     let mut cols: Vec<u32> = Vec::new();
+    let mut f: Vec<f64> = Vec::with_capacity(xs.len());
+    let mut minimizers: Vec<(u32, u32)> = Vec::with_capacity(xs.len());
     for batch in tasks.chunks(BATCH) {
         let found: Vec<Found> = batch
             .par_iter()
@@ -169,12 +204,16 @@ pub(super) fn column_test<const D: usize>(
                 walk.task(l, c, scratch)
             })
             .collect();
+        // The count only grows and counts pairs of the band only: past the cap is past it
+        // whatever the thread count, and a task that stopped early stopped past it.
+        if band.load(Ordering::Relaxed) > cap {
+            return Err(Refused::Band);
+        }
         for task in found {
             lens.extend_from_slice(&task.lens);
             cols.extend_from_slice(&task.cols);
-        }
-        if cols.len() > cap {
-            return None;
+            f.extend_from_slice(&task.f);
+            minimizers.extend_from_slice(&task.minimizers);
         }
     }
     debug_assert_eq!(lens.len(), xs.len(), "the tasks cover every row once");
@@ -199,7 +238,8 @@ pub(super) fn column_test<const D: usize>(
     let alone: Vec<u32> = (0..ys.len() as u32)
         .filter(|&j| keep[j as usize] == f64::NEG_INFINITY)
         .collect();
-    let extra = search_alone(&s, ys, f, &alone, margin, wrap, max_pairs)?;
+    // The source's minorants were made for `upper`: below |x|² − f too, since f ≤ upper.
+    let extra = search_alone(&s, ys, &f, &alone, margin, wrap, max_pairs).ok_or(Refused::Kept)?;
     let t2 = std::time::Instant::now();
     drop(s);
     let mut ptr = pointers(lens.iter().map(|&l| l as usize));
@@ -208,24 +248,31 @@ pub(super) fn column_test<const D: usize>(
         let r = cost::sq(wrap, &ys.pos[j as usize], &xs.pos[i]) - f[i];
         r <= keep[j as usize]
     });
-    let total = cols.len() + extra.len();
-    if total > max_pairs {
-        return None;
+    if cols.len() + extra.len() > max_pairs {
+        return Err(Refused::Kept);
     }
-    merge_pairs_in_place(&mut ptr, &mut cols, None, &extra);
+    // The columns searched alone and the rows' minimizers, one sorted list of pairs.
+    let mut added = extra;
+    added.extend_from_slice(&minimizers);
+    drop(minimizers);
+    added.par_sort_unstable();
+    added.dedup();
+    merge_pairs_in_place(&mut ptr, &mut cols, None, &added);
     if std::env::var_os("OTBAKE_TRACE").is_some() {
         let secs = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64();
         eprintln!(
-            "  column test: {} tasks, {total} pairs, {} columns alone; walk {:.2}s, alone {:.2}s, \
-             filter {:.2}s",
+            "  column test: {} tasks, band {}, {} pairs, {} columns alone; walk {:.2}s, alone \
+             {:.2}s, filter {:.2}s",
             tasks.len(),
+            band.load(Ordering::Relaxed),
+            cols.len(),
             alone.len(),
             secs(t0, t1),
             secs(t1, t2),
             t2.elapsed().as_secs_f64()
         );
     }
-    Some((ptr, cols))
+    Ok(Pattern { ptr, cols, f })
 }
 
 /// The walk's tasks: source cells with at most [`TASK_ROWS`] rows (or leaves), in Morton order,
@@ -250,10 +297,13 @@ fn tasks<const D: usize>(s: &Side<'_, D>) -> Vec<(usize, u32)> {
 /// busy, few enough that their lists are a small transient.
 const BATCH: usize = 64;
 
-/// One task's lists: every row's length, and the rows' columns one after the other.
+/// One task's lists: every row's length, and the rows' columns one after the other; its rows'
+/// minima and their minimizers (row, column), sorted.
 struct Found {
     lens: Vec<u32>,
     cols: Vec<u32>,
+    f: Vec<f64>,
+    minimizers: Vec<(u32, u32)>,
 }
 
 /// The columns `which` searched one at a time down the source `s`: each one's rows within `margin`
@@ -308,8 +358,9 @@ fn search_alone<const D: usize>(
 /// A task's buffers, reused.
 #[derive(Default)]
 struct Scratch {
-    /// (row − the task's first row, column) in walk order.
+    /// (row − the task's first row, column) in walk order, and each pair's cost.
     pairs: Vec<(u32, u32)>,
+    costs: Vec<f64>,
     /// [`Walk::evaluate`]'s per-point terms and the points it keeps.
     a: Vec<f64>,
     b: Vec<f64>,
@@ -321,12 +372,14 @@ struct Scratch {
 struct Walk<'a, const D: usize> {
     s: &'a Side<'a, D>,
     t: &'a Side<'a, D>,
-    f: &'a [f64],
+    /// Upper bounds of the row minima, and the target potential.
+    upper: &'a [f64],
+    g: &'a [f64],
     /// Per column, the walk's threshold g_j + (θ + σ)ε on r_ij.
     limit: &'a [f64],
     /// Per column, the smallest r_ij found (bits of an `f64`).
     lowest: &'a [AtomicU64],
-    /// |x_i|² − f_i and |y_j|² − g_j.
+    /// |x_i|² − upper_i and |y_j|² − g_j.
     hs: &'a [f64],
     ht: &'a [f64],
     /// Rounding slack of [`Walk::evaluate`]'s bound: a bound above the true value could drop a
@@ -336,21 +389,40 @@ struct Walk<'a, const D: usize> {
     reach: f64,
     shifts: &'static [f64],
     wrap: Wrap,
+    /// The band's pairs found so far over all tasks, and the most it may hold.
+    band: &'a AtomicUsize,
+    cap: usize,
 }
+
+/// Pairs a task finds between two updates of the shared count (few updates, and a task past the
+/// cap stops within this many pairs).
+const REPORT: usize = 1 << 16;
 
 impl<const D: usize> Walk<'_, D> {
     /// The pairs of the rows of source cell (`l`, `c`) with r_ij ≤ `limit[j]`, every row's columns
-    /// ascending. `pairs` is scratch.
+    /// ascending, and the rows' minima and minimizers; the columns' smallest r_ij updated. Walks
+    /// the band of C_ij − upper_i first, then reads each row's minimum off it and keeps what is
+    /// within the limit of C_ij − f_i. Stops early (with what it has) once the shared count of
+    /// the band is past the cap.
     fn task(&self, l: usize, c: u32, scratch: &mut Scratch) -> Found {
         let (s, t) = (self.s, self.t);
         let (ra, rb) = s.desc(l, c);
         scratch.pairs.clear();
+        scratch.costs.clear();
+        let mut reported = 0usize;
         let mut stack = vec![(l as u8, c, 0u8, 0u32)];
         while let Some((lp, p, lj, j)) = stack.pop() {
             let (lp, lj) = (lp as usize, lj as usize);
             let (p_leaf, j_leaf) = (s.leaf(lp, p), t.leaf(lj, j));
             if p_leaf && j_leaf {
                 self.evaluate((lp, p), (lj, j), ra, scratch);
+                if scratch.pairs.len() - reported >= REPORT {
+                    let now = scratch.pairs.len() - reported;
+                    reported = scratch.pairs.len();
+                    if self.band.fetch_add(now, Ordering::Relaxed) + now > self.cap {
+                        break;
+                    }
+                }
                 continue;
             }
             let count = |side: &Side<'_, D>, l: usize, c: u32| {
@@ -377,10 +449,41 @@ impl<const D: usize> Walk<'_, D> {
                 }
             }
         }
+        self.band
+            .fetch_add(scratch.pairs.len() - reported, Ordering::Relaxed);
+        let m = (rb - ra) as usize;
+        let Scratch { pairs, costs, .. } = scratch;
+        // Each row's minimum over its band, which holds the row's minimizers (their C_ij − g_j is
+        // at most upper_i).
+        let mut f = vec![f64::INFINITY; m];
+        for (&(i, j), &c) in pairs.iter().zip(costs.iter()) {
+            let v = c - self.g[j as usize];
+            let fi = &mut f[i as usize];
+            if v < *fi {
+                *fi = v;
+            }
+        }
+        // The band narrowed to r_ij = C_ij − f_i ≤ limit[j], in place and in walk order; the
+        // minimizers besides.
+        let mut minimizers = Vec::new();
+        let mut w = 0;
+        for q in 0..pairs.len() {
+            let ((i, j), c) = (pairs[q], costs[q]);
+            let (iu, ju) = (i as usize, j as usize);
+            if c - self.g[ju] <= f[iu] {
+                minimizers.push((ra + i, j));
+            }
+            let r = c - f[iu];
+            if r <= self.limit[ju] {
+                lower(&self.lowest[ju], r);
+                pairs[w] = (i, j);
+                w += 1;
+            }
+        }
+        pairs.truncate(w);
+        minimizers.sort_unstable();
         // The pairs in walk order hold every row's columns ascending: a stable counting sort by
         // row keeps that order.
-        let pairs = &scratch.pairs;
-        let m = (rb - ra) as usize;
         let mut lens = vec![0u32; m];
         for &(i, _) in pairs.iter() {
             lens[i as usize] += 1;
@@ -397,15 +500,20 @@ impl<const D: usize> Walk<'_, D> {
             cols[*slot] = j;
             *slot += 1;
         }
-        Found { lens, cols }
+        Found {
+            lens,
+            cols,
+            f,
+            minimizers,
+        }
     }
 
-    /// Every pair of the points of source cell `p` and target cell `j` with r_ij ≤ `limit[j]`
-    /// into `pairs` (rows relative to `base`), each row's columns ascending; the columns' smallest
-    /// r_ij updated.
+    /// Every pair of the points of source cell `p` and target cell `j` with
+    /// C_ij − upper_i ≤ `limit[j]` into `pairs` (rows relative to `base`), each row's columns
+    /// ascending, with its cost into `costs`.
     ///
     /// Before the pairs, the cells' points are filtered by a bound that knows each of them
-    /// exactly: with x_c, y_c the boxes' centres, u = x − x_c and v = y − y_c,
+    /// exactly: with x_c, y_c the boxes' centres, u = x − x_c and v = y − y_c, f = upper,
     /// C − f − g = A_i + B_j + 2 x_c·y_c − 2 u_i·v_j, A_i = |x_i|² − f_i − 2 x_i·y_c and
     /// B_j = |y_j|² − g_j − 2 x_c·y_j, and −2 u_i·v_j ≥ −2 Σ_k |u_ik| w_k for the half-widths w of
     /// the target box (likewise per column). The cell bound of the walk loses the spread of the
@@ -418,6 +526,7 @@ impl<const D: usize> Walk<'_, D> {
         let (rows, cols) = (s.desc(p.0, p.1), t.desc(j.0, j.1));
         let Scratch {
             pairs,
+            costs,
             a: av,
             b: bv,
             rows: kr,
@@ -478,14 +587,14 @@ impl<const D: usize> Walk<'_, D> {
         }
         for &qi in kr.iter() {
             let i = rows.0 + qi;
-            let (x, fi) = (&xs.pos[i as usize], self.f[i as usize]);
+            let (x, fi) = (&xs.pos[i as usize], self.upper[i as usize]);
             for &qj in kc.iter() {
                 let jj = cols.0 + qj;
                 let ju = jj as usize;
-                let r = cost::sq(self.wrap, &ys.pos[ju], x) - fi;
-                if r <= self.limit[ju] {
+                let c = cost::sq(self.wrap, &ys.pos[ju], x);
+                if c - fi <= self.limit[ju] {
                     pairs.push((i - base, jj));
-                    lower(&self.lowest[ju], r);
+                    costs.push(c);
                 }
             }
         }
@@ -515,7 +624,7 @@ impl<const D: usize> Walk<'_, D> {
         Some(m)
     }
 
-    /// A lower bound of C_ij − f_i − g_j over the points of source cell `p` and target cell `j`
+    /// A lower bound of C_ij − upper_i − g_j over the points of source cell `p` and target cell `j`
     /// (both above the search level).
     #[inline]
     fn bound(&self, p: (usize, u32), j: (usize, u32)) -> f64 {

@@ -24,6 +24,55 @@ fn potential(ys: &[[f64; 2]], rough: f64) -> Vec<f64> {
         .collect()
 }
 
+/// Builds the kernel three ways and checks they agree bit for bit: from the row minima searched
+/// first (no bounds), from bounds of them `loose` above the exact minima (the walk reads the minima
+/// off its band), and from bounds so loose that the band passes its cap and the build falls back
+/// to the searched minima. Returns the kernel.
+#[allow(clippy::too_many_arguments)]
+pub(in crate::sinkhorn) fn build_three_ways<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    level: usize,
+    g: &[f64],
+    eps: f64,
+    theta: f64,
+    wrap: Wrap,
+    loose: f64,
+) -> Kernel {
+    let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
+    let plain = build(hs, ht, level, g, eps, theta, wrap, usize::MAX, None).unwrap();
+    let exact: Vec<f64> = (0..xs.len())
+        .map(|i| {
+            (0..ys.len())
+                .map(|j| cost::sq(wrap, &xs.pos[i], &ys.pos[j]) - g[j])
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    let noise = |i: usize| ((i as f64 * 78.233).sin() * 43758.5453).fract().abs();
+    let same = |k: &Kernel, how: &str| {
+        assert_eq!(k.row_ptr, plain.row_ptr, "{how}: level {level}");
+        assert_eq!(k.col, plain.col, "{how}: level {level}");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&k.k), bits(&plain.k), "{how}: level {level}");
+        assert_eq!(k.f, plain.f, "{how}: level {level}");
+    };
+    let upper: Vec<f64> = (0..xs.len()).map(|i| exact[i] + loose * noise(i)).collect();
+    same(
+        &build(hs, ht, level, g, eps, theta, wrap, usize::MAX, Some(&upper)).unwrap(),
+        "bounded",
+    );
+    // A band of every pair, far past four times the kernel's pairs: the searched minima decide.
+    let far: Vec<f64> = exact.iter().map(|v| v + 1e3).collect();
+    let max = plain.pairs();
+    if xs.len() * ys.len() > 4 * max {
+        same(
+            &build(hs, ht, level, g, eps, theta, wrap, max, Some(&far)).unwrap(),
+            "too wide",
+        );
+    }
+    plain
+}
+
 /// The block-parallel transpose equals a sequential counting transpose, for patterns with empty
 /// rows, empty columns, rows spanning many blocks and fewer columns than blocks.
 #[test]
@@ -74,7 +123,7 @@ fn truncation_equals_dense_scan() {
         let g = potential(&ys.pos, rough);
         let eps = 1e-3;
         let theta = 8.0;
-        let kern = build(&hs, &ht, level, &g, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
+        let kern = build_three_ways(&hs, &ht, level, &g, eps, theta, Wrap::Clamp, 4.0 * eps);
         let f: Vec<f64> = (0..xs.len())
             .map(|i| {
                 (0..ys.len())
@@ -139,7 +188,18 @@ fn local_rebuild_keeps_every_pair_it_promises() {
                 .fold(f64::INFINITY, f64::min)
         })
         .collect();
-    let whole = build(&hs, &ht, level, &g0, eps, theta, Wrap::Clamp, usize::MAX).unwrap();
+    let whole = build(
+        &hs,
+        &ht,
+        level,
+        &g0,
+        eps,
+        theta,
+        Wrap::Clamp,
+        usize::MAX,
+        None,
+    )
+    .unwrap();
     // Every column moves a little (below τε); a patch of columns moves by up to ±12ε, and one
     // column by 40ε (it becomes the best column of rows that never saw it).
     let g: Vec<f64> = g0
@@ -310,8 +370,11 @@ fn lists_merge_in_place_into_their_unions() {
 /// ([`pattern::column_test`]) keep exactly what dense scans keep, in 3D on the cube and on the
 /// torus, at the point level and at a cell level, for a potential with a steep slope and curvature
 /// and with noise: the minima and their minimizers, and for every column the rows within the
-/// margin of its minimum, and the pair limit. Once for f the row minima of g (the walk finds nearly
-/// every column), once for f off by more than the margin (most columns are searched alone).
+/// margin of its minimum, and the pair limit. The walk is given the exact row minima as their
+/// bounds, and bounds above them by up to twice the margin and by up to 50 times it (a band of
+/// nearly every pair); at the smaller margin many columns' minima are too far above g to be found
+/// by the walk, and are searched alone.
+#[allow(clippy::needless_range_loop)]
 #[test]
 fn row_minima_and_column_test_equal_dense_scans_in_3d() {
     let cloud = |seed: f64, n: usize| -> Vec<[f64; 3]> {
@@ -340,6 +403,7 @@ fn row_minima_and_column_test_equal_dense_scans_in_3d() {
                 .map(|(j, y)| 1.4 * y[0] * y[0] - 0.8 * y[1] * y[2] + 0.5 * y[2] + 2e-3 * noise(j))
                 .collect();
             let (ptr, idx, f) = search::row_minima(xs, &ht, level, &g, wrap, usize::MAX).unwrap();
+            let mut best: Vec<Vec<u32>> = Vec::new();
             for i in 0..xs.len() {
                 let vals: Vec<f64> = (0..ys.len())
                     .map(|j| cost::sq(wrap, &xs.pos[i], &ys.pos[j]) - g[j])
@@ -354,42 +418,53 @@ fn row_minima_and_column_test_equal_dense_scans_in_3d() {
                     &want[..],
                     "{wrap:?} level {level} row {i}"
                 );
+                best.push(want);
             }
-            let off: Vec<f64> = f
-                .iter()
-                .enumerate()
-                .map(|(i, v)| v + 0.05 * noise(i))
-                .collect();
-            for (f, margin) in [(&f, 1e-3), (&f, 2e-2), (&off, 1e-3)] {
-                let (ptr, rows) =
-                    pattern::column_test(&hs, &ht, level, f, &g, margin, wrap, usize::MAX).unwrap();
-                let mut want: Vec<Vec<u32>> = vec![Vec::new(); xs.len()];
+            for (loose, margin) in [(0.0, 1e-3), (0.0, 2e-2), (2e-3, 1e-3), (5e-2, 1e-3)] {
+                let upper: Vec<f64> = f
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| v + loose * noise(i + 7).abs())
+                    .collect();
+                let run =
+                    |max| pattern::column_test(&hs, &ht, level, &upper, &g, margin, wrap, max);
+                let Ok(pat) = run(usize::MAX) else {
+                    panic!("{wrap:?} level {level} margin {margin}: refused without a limit");
+                };
+                assert_eq!(pat.f, f, "{wrap:?} level {level} margin {margin}");
+                let mut want: Vec<Vec<u32>> = best.clone();
+                let mut alone = 0;
                 for j in 0..ys.len() {
                     let vals: Vec<f64> = (0..xs.len())
                         .map(|i| cost::sq(wrap, &ys.pos[j], &xs.pos[i]) - f[i])
                         .collect();
                     let min = vals.iter().copied().fold(f64::INFINITY, f64::min);
+                    alone += usize::from(min > g[j] + margin / 8.0);
                     for i in 0..xs.len() {
                         if vals[i] <= min + margin {
                             want[i].push(j as u32);
                         }
                     }
                 }
-                for i in 0..xs.len() {
+                if margin == 1e-3 {
+                    assert!(alone > 10, "{wrap:?} level {level}: {alone} columns alone");
+                }
+                for (i, w) in want.iter_mut().enumerate() {
+                    w.sort_unstable();
+                    w.dedup();
                     assert_eq!(
-                        &rows[ptr[i]..ptr[i + 1]],
-                        &want[i][..],
+                        &pat.cols[pat.ptr[i]..pat.ptr[i + 1]],
+                        &w[..],
                         "{wrap:?} level {level} margin {margin} row {i}"
                     );
                 }
                 // The pair limit holds exactly: refused one pair below the count, also where
                 // most pairs come from columns searched alone.
-                let run = |max| pattern::column_test(&hs, &ht, level, f, &g, margin, wrap, max);
-                assert!(
-                    run(rows.len() - 1).is_none(),
-                    "{wrap:?} level {level} {margin}"
-                );
-                assert!(run(rows.len()).is_some(), "{wrap:?} level {level} {margin}");
+                let total = pat.cols.len();
+                assert!(run(total - 1).is_err(), "{wrap:?} level {level} {margin}");
+                if loose == 0.0 {
+                    assert!(run(total).is_ok(), "{wrap:?} level {level} {margin}");
+                }
             }
         }
     }
