@@ -132,8 +132,7 @@ pub(super) fn column_test<const D: usize>(
         level,
         bnd: bounds(tgt, level, g),
     };
-    // Per column, the walk's threshold on r_ij and the smallest r_ij found.
-    let limit: Vec<f64> = g.par_iter().map(|gj| gj + reach).collect();
+    // Per column, the smallest r_ij found (the walk's threshold on r_ij is g_j + reach).
     let lowest: Vec<AtomicU64> = (0..ys.len())
         .map(|_| AtomicU64::new(f64::INFINITY.to_bits()))
         .collect();
@@ -176,7 +175,6 @@ pub(super) fn column_test<const D: usize>(
         t: &t,
         upper,
         g,
-        limit: &limit,
         lowest: &lowest,
         hs: &hs,
         ht: &ht,
@@ -224,17 +222,17 @@ pub(super) fn column_test<const D: usize>(
     // walk found (−∞, none, for the others: they are searched alone).
     let keep: Vec<f64> = lowest
         .par_iter()
-        .zip(&limit)
-        .map(|(m, &lim)| {
+        .zip(g)
+        .map(|(m, &gj)| {
             let m = f64::from_bits(m.load(Ordering::Relaxed));
-            if m + margin <= lim {
+            if m + margin <= gj + reach {
                 m + margin
             } else {
                 f64::NEG_INFINITY
             }
         })
         .collect();
-    drop((lowest, limit));
+    drop(lowest);
     let alone: Vec<u32> = (0..ys.len() as u32)
         .filter(|&j| keep[j as usize] == f64::NEG_INFINITY)
         .collect();
@@ -298,7 +296,7 @@ fn tasks<const D: usize>(s: &Side<'_, D>) -> Vec<(usize, u32)> {
 const BATCH: usize = 64;
 
 /// One task's lists: every row's length, and the rows' columns one after the other; its rows'
-/// minima and their minimizers (row, column), sorted.
+/// minima and their minimizers (row, column).
 struct Found {
     lens: Vec<u32>,
     cols: Vec<u32>,
@@ -375,8 +373,6 @@ struct Walk<'a, const D: usize> {
     /// Upper bounds of the row minima, and the target potential.
     upper: &'a [f64],
     g: &'a [f64],
-    /// Per column, the walk's threshold g_j + (θ + σ)ε on r_ij.
-    limit: &'a [f64],
     /// Per column, the smallest r_ij found (bits of an `f64`).
     lowest: &'a [AtomicU64],
     /// |x_i|² − upper_i and |y_j|² − g_j.
@@ -399,7 +395,7 @@ struct Walk<'a, const D: usize> {
 const REPORT: usize = 1 << 16;
 
 impl<const D: usize> Walk<'_, D> {
-    /// The pairs of the rows of source cell (`l`, `c`) with r_ij ≤ `limit[j]`, every row's columns
+    /// The pairs of the rows of source cell (`l`, `c`) with r_ij ≤ g_j + reach, every row's columns
     /// ascending, and the rows' minima and minimizers; the columns' smallest r_ij updated. Walks
     /// the band of C_ij − upper_i first, then reads each row's minimum off it and keeps what is
     /// within the limit of C_ij − f_i. Stops early (with what it has) once the shared count of
@@ -463,25 +459,24 @@ impl<const D: usize> Walk<'_, D> {
                 *fi = v;
             }
         }
-        // The band narrowed to r_ij = C_ij − f_i ≤ limit[j], in place and in walk order; the
-        // minimizers besides.
+        // The band narrowed to r_ij = C_ij − f_i ≤ g_j + reach, in place and in walk order; the
+        // minimizers besides (sorted with the columns searched alone, in `column_test`).
         let mut minimizers = Vec::new();
         let mut w = 0;
         for q in 0..pairs.len() {
             let ((i, j), c) = (pairs[q], costs[q]);
-            let (iu, ju) = (i as usize, j as usize);
-            if c - self.g[ju] <= f[iu] {
+            let (iu, gj) = (i as usize, self.g[j as usize]);
+            if c - gj <= f[iu] {
                 minimizers.push((ra + i, j));
             }
             let r = c - f[iu];
-            if r <= self.limit[ju] {
-                lower(&self.lowest[ju], r);
+            if r <= gj + self.reach {
+                lower(&self.lowest[j as usize], r);
                 pairs[w] = (i, j);
                 w += 1;
             }
         }
         pairs.truncate(w);
-        minimizers.sort_unstable();
         // The pairs in walk order hold every row's columns ascending: a stable counting sort by
         // row keeps that order.
         let mut lens = vec![0u32; m];
@@ -509,7 +504,7 @@ impl<const D: usize> Walk<'_, D> {
     }
 
     /// Every pair of the points of source cell `p` and target cell `j` with
-    /// C_ij − upper_i ≤ `limit[j]` into `pairs` (rows relative to `base`), each row's columns
+    /// C_ij − upper_i ≤ g_j + reach into `pairs` (rows relative to `base`), each row's columns
     /// ascending, with its cost into `costs`.
     ///
     /// Before the pairs, the cells' points are filtered by a bound that knows each of them
@@ -592,7 +587,7 @@ impl<const D: usize> Walk<'_, D> {
                 let jj = cols.0 + qj;
                 let ju = jj as usize;
                 let c = cost::sq(self.wrap, &ys.pos[ju], x);
-                if c - fi <= self.limit[ju] {
+                if c - fi <= self.g[ju] + self.reach {
                     pairs.push((i - base, jj));
                     costs.push(c);
                 }
