@@ -94,8 +94,9 @@ impl Default for SinkhornSettings {
 /// K·v in four partial sums, the over-relaxation's power as exp(ω' ln x) (D155; the measured maps
 /// kept every byte, but a near-tie elsewhere may not). 10: local rebuilds rescale the entries they
 /// keep by a row and a column factor instead of valuing them afresh (D157; the 1M cow's map moved
-/// among near-ties, the others measured kept their bytes).
-const REVISION: u32 = 10;
+/// among near-ties, the others measured kept their bytes). 11: the stages before the last end on
+/// their tolerance whatever their support's drift (D161).
+const REVISION: u32 = 11;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

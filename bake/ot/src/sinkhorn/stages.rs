@@ -2,7 +2,7 @@
 //! to its level and scale, builds its kernel and iterates until its marginal error is below its
 //! tolerance.
 
-use super::iterate::{build_kernel, iterate};
+use super::iterate::{build_kernel, iterate, Goal};
 use super::potentials::{
     absorbed, extrapolate, hard_transform, hard_transform_best, shrink_offset, upper_from_parents,
 };
@@ -83,8 +83,20 @@ pub(super) fn run<const D: usize>(
             support: Support::Whole,
         };
         let t0 = std::time::Instant::now();
-        let tol = stage_tolerance(settings, last);
-        let log = iterate(hs, ht, &mut st, settings, tol, &mut rebuilds, wrap, spacing)?;
+        let goal = Goal {
+            tolerance: stage_tolerance(settings, last),
+            last,
+        };
+        let log = iterate(
+            hs,
+            ht,
+            &mut st,
+            settings,
+            goal,
+            &mut rebuilds,
+            wrap,
+            spacing,
+        )?;
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("stage {stage} blur {blur:.3e} level {level} cells {}x{} pairs {} its {} err {:.2e} {:.2}s", hs.levels[level].len(), ht.levels[level].len(), st.kernel.pairs(), log.iterations, log.error, t0.elapsed().as_secs_f64());
         }
