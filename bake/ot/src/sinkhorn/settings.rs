@@ -61,7 +61,8 @@ pub struct SinkhornSettings {
     /// by 4 is one more auction phase (about 10 bids per point). Default 1/4 (one phase: the
     /// auction starts at ε/4, D145): at 5K points the cost is within 0.03% of exact and the
     /// L2-UVP 0.05%; 1/16 gives 0.002% and 0.015%, 1 (one phase at ε) 0.12% and 0.1%
-    /// (BENCHMARKS.md).
+    /// (BENCHMARKS.md). A second phase can take minutes on large inputs: its price war parks
+    /// rows for augmenting paths (the 250K duck at 1/16 ran past 150 s, D161).
     pub auction_eps: f64,
 }
 
