@@ -184,9 +184,7 @@ pub(super) struct Goal {
     /// limits. An earlier one ends on its tolerance alone, and a stale support waits twice
     /// [`STALE_ITERATIONS`] once the stage is near its end: its plan only seeds the next stage,
     /// whose kernel is built whole around the potentials it hands on, so a strict rebuild and the
-    /// iterations after it were paid for nothing (the 1M cow's stage 7 rebuilt 140K rows at 50
-    /// iterations past its last build, with the error 1.2 times its tolerance, then iterated 16
-    /// times more: 1.9 of its 4.7 s).
+    /// iterations after it would be paid for nothing (docs/decisions.md, D161).
     pub last: bool,
 }
 
@@ -280,7 +278,7 @@ pub(super) fn iterate<const D: usize>(
         let soft = match st.support {
             Support::Whole => drift.soft,
             Support::Local => drift.soft_local,
-            // Never ends a stage.
+            // Never ends the last stage.
             Support::Loose => 0.0,
         };
         // An earlier stage's plan only seeds the next stage, whose kernel is built whole from its
