@@ -50,6 +50,7 @@
 //! structures, [`state`] what the steps hand each other, [`settings`] the configuration.
 
 mod complete;
+mod fastexp;
 mod hierarchy;
 mod iterate;
 mod kernel;

@@ -1,6 +1,7 @@
 //! Potentials between stages: absorbing the scalings, hard c-transforms on a sparse support, the
 //! ε extrapolation of the entropic offset, and the soft c-transform onto a finer level.
 
+use super::fastexp::sum_exp;
 use super::hierarchy::Hierarchy;
 use crate::cost::sq;
 use crate::Wrap;
@@ -146,7 +147,11 @@ pub(super) fn extrapolate<const D: usize>(
                 f[i] - sq(wrap, &xs[i], y) + eps_ln_a[i]
             }));
             let m = terms.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let s: f64 = terms.iter().map(|&t| ((t - m) / eps).exp()).sum();
+            let s = if m.is_finite() {
+                sum_exp(terms, m, eps)
+            } else {
+                terms.iter().map(|&t| ((t - m) / eps).exp()).sum()
+            };
             -(m + eps * s.ln())
         })
         .collect()

@@ -96,8 +96,10 @@ impl Default for SinkhornSettings {
 /// kept every byte, but a near-tie elsewhere may not). 10: local rebuilds rescale the entries they
 /// keep by a row and a column factor instead of valuing them afresh (D157; the 1M cow's map moved
 /// among near-ties, the others measured kept their bytes). 11: the stages before the last end on
-/// their tolerance whatever their support's drift (D161).
-const REVISION: u32 = 11;
+/// their tolerance whatever their support's drift (D161). 12: the soft c-transform carrying a
+/// potential to the next stage sums its exponentials by a polynomial, not libm (D162; the
+/// measured maps kept every byte, but a near-tie elsewhere may not).
+const REVISION: u32 = 12;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {
