@@ -20,7 +20,7 @@ const LOWEST: f64 = -700.0;
 
 /// e^x for x ≤ 0 (and NaN → NaN), to about 1e-12 relative; exponents below −700 give e^−700.
 #[inline(always)]
-pub(super) fn exp_neg(x: f64) -> f64 {
+fn exp_neg(x: f64) -> f64 {
     // (Not `max`, which would take a NaN to the floor: a NaN exponent stays one.)
     let x = if x < LOWEST { LOWEST } else { x };
     // n = round(x / ln 2) as the low bits of `t`, f = x − n ln 2 in [−ln2/2, ln2/2].
