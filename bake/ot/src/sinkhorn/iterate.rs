@@ -113,9 +113,10 @@ fn relax(old: f64, plain: f64, omega: f64) -> f64 {
 }
 
 /// A row or column has moved (and a local rebuild searches it again) when its potential is more
-/// than τε = `LOCAL_MOVE`·θε from the last whole build's. A larger τ lets a stage end on a local
-/// rebuild where a smaller one would find most points moved and rebuild whole (the final stage's
-/// entropic offsets move half of the points by more than θε/16), at the price of a tighter end
+/// than τε = `LOCAL_MOVE`·θε from where it was last searched (by the last whole build or a local
+/// rebuild since, D163). A larger τ lets a stage end on a local rebuild where a smaller one would
+/// find most points moved and rebuild whole (the final stage's entropic offsets move half of the
+/// points by more than θε/16), at the price of a tighter end
 /// (drift within (θ/4 − τ)ε after it). θ/8 rather than θ/16 (D148): 250K cow 21.0 → 17.5 s user,
 /// duck 7.9 → 6.7 s, the 1M cow 80.1 → 77.6 s wall; the 5K accuracy within 2% of before.
 pub(super) const LOCAL_MOVE: f64 = 1.0 / 8.0;
@@ -595,8 +596,8 @@ impl Rebuild {
             &mut st.kernel,
             &st.g,
             &g,
-            &st.f0,
-            &st.g0,
+            &mut st.f0,
+            &mut st.g0,
             st.eps,
             kernel::LocalLimits {
                 theta: settings.truncate,

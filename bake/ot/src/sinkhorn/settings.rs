@@ -98,8 +98,10 @@ impl Default for SinkhornSettings {
 /// among near-ties, the others measured kept their bytes). 11: the stages before the last end on
 /// their tolerance whatever their support's drift (D161). 12: the soft c-transform carrying a
 /// potential to the next stage sums its exponentials by a polynomial, not libm (D162; the
-/// measured maps kept every byte, but a near-tie elsewhere may not).
-const REVISION: u32 = 12;
+/// measured maps kept every byte, but a near-tie elsewhere may not). 13: a local rebuild searches
+/// what moved since it was last searched, at (θ + τ)ε, not everything that moved since the last
+/// whole build (D163).
+const REVISION: u32 = 13;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {

@@ -22,7 +22,8 @@ pub(super) struct State {
     pub v: Vec<f64>,
     /// Target potential the kernel was built with.
     pub g: Vec<f64>,
-    /// Potentials of the last whole kernel build (the reference of local rebuilds).
+    /// Each row's and column's potential when it was last searched, by the last whole build or a
+    /// local rebuild since (the references of local rebuilds, `kernel::rebuild_local`).
     pub f0: Vec<f64>,
     pub g0: Vec<f64>,
     /// What the support guarantees since the last rebuild.

@@ -35,21 +35,27 @@ pub(in crate::sinkhorn) enum Local {
 }
 
 /// Rebuilds `kern` in place for the new target potential `g` by searching again only the rows and
-/// columns whose potentials moved by more than τε since the last whole build (`f0`, `g0`: the
-/// potentials of that build; `kern` holds its pairs and every pair added since, valued for its own
-/// `f` and `g_then`). In place, because an old and a new kernel side by side were the solve's peak
-/// memory; `kern` is unchanged when the result is `TooMany` or `None`.
+/// columns whose potentials moved by more than τε from their references (`f0`, `g0`: each row's
+/// and column's potential when it was last searched, by the last whole build or a local rebuild
+/// since; `kern` holds that build's pairs and every pair added since, valued for its own `f` and
+/// `g_then`), and moves the references of the rows and columns it searched to their new
+/// potentials. In place, because an old and a new kernel side by side were the solve's peak
+/// memory; `kern` and the references are unchanged when the result is `TooMany` or `None`.
 ///
-/// Why it is enough. Every pair the whole build dropped had C − f0 − g0 > θε. A pair of a row and
-/// a column that both stayed within τε of (`f0`, `g0`) therefore still has C − f − g > (θ − 2τ)ε,
-/// and the old pairs are kept. A moved column is searched with the absolute test C − f − g ≤ θε
-/// (against an upper bound of the new row minima, which only widens it), a moved row likewise; so
-/// every pair touching a moved row or column with reduced cost ≤ θε is kept. The new f is exact:
-/// a row's minimum is over its old pairs, the moved columns' new pairs, and — for a moved row — its
-/// own search; a column outside those can beat it only by moving more than τε, or for rows whose
-/// minimum rose by more than (θ − τ)ε, which are moved rows. So dropped pairs are more than
-/// (θ − 2τ)ε above zero reduced cost, K ≤ 1 still holds, and the set only grows until the next
-/// whole build. Returns `None` past `max_pairs` (like [`super::build`]).
+/// Why it is enough. The invariant: every pair the kernel lacks has C − f0_i − g0_j > θε (a whole
+/// build keeps every pair within θε). A pair of a row and a column that both stayed within τε of
+/// their references therefore still has C − f − g > (θ − 2τ)ε. A moved column is searched with
+/// the absolute test C − f − g ≤ (θ + τ)ε (against an upper bound of the new row minima, which
+/// only widens it), a moved row likewise; so a pair it does not keep has C − f − g > (θ + τ)ε,
+/// and with its other side within τε of its reference (or searched too), C − f0 − g0 > θε at the
+/// moved side's new reference: the invariant holds again, and a row or column searched once is not
+/// searched again until it moves τε from where it was searched (the last rebuilds of a stage
+/// searched the same rows again and again, D163). The new f is exact: a row's minimum is over its
+/// old pairs, the moved columns' new pairs, and — for a moved row — its own search; a column
+/// outside those can beat it only by moving more than τε, or for rows whose minimum rose by more
+/// than (θ − τ)ε, which are moved rows. So the pairs the kernel lacks are more than (θ − 2τ)ε above
+/// zero reduced cost, K ≤ 1 still holds, and the set only grows until the next whole build.
+/// Returns `None` past `max_pairs` (like [`super::build`]).
 #[allow(clippy::too_many_arguments)]
 pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     src: &Hierarchy<D>,
@@ -58,8 +64,8 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     kern: &mut Kernel,
     g_then: &[f64],
     g: &[f64],
-    f0: &[f64],
-    g0: &[f64],
+    f0: &mut [f64],
+    g0: &mut [f64],
     eps: f64,
     limits: LocalLimits,
     wrap: Wrap,
@@ -73,7 +79,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
         max_moved,
         max_pairs,
     } = limits;
-    let (margin, moved) = (theta * eps, tau * eps);
+    let (margin, moved) = ((theta + tau) * eps, tau * eps);
     let whole = tau_whole * eps;
     let too_many = |d: &[f64], d0: &[f64]| {
         d.par_iter()
@@ -82,7 +88,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
             .count()
             > max_moved
     };
-    if too_many(g, g0) {
+    if too_many(g, &*g0) {
         return Some(Local::TooMany);
     }
     let cols: Vec<u32> = (0..nt as u32)
@@ -115,7 +121,7 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
             extra.push((i, j));
         }
     }
-    if too_many(&f, f0) {
+    if too_many(&f, &*f0) {
         return Some(Local::TooMany);
     }
     let rows: Vec<u32> = (0..m as u32)
@@ -138,6 +144,12 @@ pub(in crate::sinkhorn) fn rebuild_local<const D: usize>(
     // Rows are the old lists merged with the new pairs (both sorted), in the kernel's own arrays,
     // then valued for the new (f, g).
     merge_pairs_in_place(&mut kern.row_ptr, &mut kern.col, Some(&mut kern.k), &extra);
+    for &i in &rows {
+        f0[i as usize] = f[i as usize];
+    }
+    for &j in &cols {
+        g0[j as usize] = g[j as usize];
+    }
     let f_then = std::mem::replace(&mut kern.f, f);
     kern.revalue(xs, ys, (&f_then, g_then), g, eps, wrap);
     Some(Local::Built(rows.len(), cols.len()))

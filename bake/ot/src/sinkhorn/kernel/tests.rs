@@ -161,7 +161,9 @@ fn truncation_equals_dense_scan() {
 }
 
 /// A local rebuild after some potentials moved keeps its promise against a dense scan: f is
-/// the exact row minimum (so K ≤ 1), and every pair with reduced cost ≤ (θ − 2τ)ε is kept.
+/// the exact row minimum (so K ≤ 1), and every pair with reduced cost ≤ (θ − 2τ)ε is kept. So
+/// does a second one after more moves, from the references the first moved: it searches the rows
+/// and columns that moved since, not again every one that moved since the whole build.
 #[allow(clippy::needless_range_loop)]
 #[test]
 fn local_rebuild_keeps_every_pair_it_promises() {
@@ -218,6 +220,14 @@ fn local_rebuild_keeps_every_pair_it_promises() {
         })
         .collect();
     let mut kern = whole.clone();
+    let (mut f_ref, mut g_ref) = (whole.f.clone(), g0.clone());
+    let limits = LocalLimits {
+        theta,
+        tau,
+        tau_whole: tau,
+        max_moved: xs.len(),
+        max_pairs: usize::MAX,
+    };
     let Some(Local::Built(rows, cols)) = rebuild_local(
         &hs,
         &ht,
@@ -225,16 +235,10 @@ fn local_rebuild_keeps_every_pair_it_promises() {
         &mut kern,
         &g0,
         &g,
-        &whole.f,
-        &g0,
+        &mut f_ref,
+        &mut g_ref,
         eps,
-        LocalLimits {
-            theta,
-            tau,
-            tau_whole: tau,
-            max_moved: xs.len(),
-            max_pairs: usize::MAX,
-        },
+        limits,
         Wrap::Clamp,
     ) else {
         panic!("the local rebuild was refused");
@@ -243,6 +247,92 @@ fn local_rebuild_keeps_every_pair_it_promises() {
         rows > 0 && cols > 0 && cols < ys.len() / 4,
         "{rows} rows, {cols} cols"
     );
+    keeps_its_promise(&hs, &ht, &kern, &whole, &g, (theta, tau, eps));
+    holds_the_invariant(&hs, &ht, &kern, (&f_ref, &g_ref), theta * eps);
+    // The references moved where the rebuild searched: to the new row minima and potentials.
+    let moved_rows = (0..xs.len()).filter(|&i| f_ref[i] != whole.f[i]).count();
+    assert_eq!(moved_rows, rows);
+    assert!((0..xs.len()).all(|i| f_ref[i] == whole.f[i] || f_ref[i] == kern.f[i]));
+    assert_eq!((0..ys.len()).filter(|&j| g_ref[j] != g0[j]).count(), cols);
+    // More moves: the patch goes on moving, and a second patch starts.
+    let g2: Vec<f64> = g
+        .iter()
+        .zip(&ys.pos)
+        .enumerate()
+        .map(|(j, (&v, y))| {
+            let patch = if (y[0] - 0.5).abs() < 0.15 && y[1] < 0.25 {
+                3.0 * eps * ((j as f64 * 0.7).cos())
+            } else if (y[1] - 0.7).abs() < 0.1 && y[0] < 0.3 {
+                5.0 * eps
+            } else {
+                0.0
+            };
+            v + patch
+        })
+        .collect();
+    let first = kern.clone();
+    let Some(Local::Built(rows2, _)) = rebuild_local(
+        &hs,
+        &ht,
+        level,
+        &mut kern,
+        &g,
+        &g2,
+        &mut f_ref,
+        &mut g_ref,
+        eps,
+        limits,
+        Wrap::Clamp,
+    ) else {
+        panic!("the second local rebuild was refused");
+    };
+    keeps_its_promise(&hs, &ht, &kern, &first, &g2, (theta, tau, eps));
+    holds_the_invariant(&hs, &ht, &kern, (&f_ref, &g_ref), theta * eps);
+    // Against the whole build's potentials more rows moved than the second rebuild searched.
+    let since_whole = (0..xs.len())
+        .filter(|&i| (kern.f[i] - whole.f[i]).abs() > tau * eps)
+        .count();
+    assert!(
+        rows2 > 0 && rows2 < since_whole,
+        "{rows2} rows searched, {since_whole} moved"
+    );
+}
+
+/// The invariant of local rebuilds (see [`rebuild_local`]): every pair `kern` lacks has
+/// C − f0_i − g0_j > θε at the references.
+fn holds_the_invariant<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    kern: &Kernel,
+    (f0, g0): (&[f64], &[f64]),
+    margin: f64,
+) {
+    let level = hs.point_level();
+    let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
+    for (i, (x, fi)) in xs.pos.iter().zip(f0).enumerate() {
+        let kept = &kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
+        for (j, (y, gj)) in ys.pos.iter().zip(g0).enumerate() {
+            let reduced = sq(x, y) - fi - gj;
+            if reduced <= margin {
+                assert!(kept.contains(&(j as u32)), "pair ({i},{j}) at {reduced:e}");
+            }
+        }
+    }
+}
+
+/// What [`local_rebuild_keeps_every_pair_it_promises`] checks of a rebuilt `kern` (made from
+/// `before`) for potential `g` against a dense scan.
+#[allow(clippy::needless_range_loop)]
+fn keeps_its_promise<const D: usize>(
+    hs: &Hierarchy<D>,
+    ht: &Hierarchy<D>,
+    kern: &Kernel,
+    whole: &Kernel,
+    g: &[f64],
+    (theta, tau, eps): (f64, f64, f64),
+) {
+    let level = hs.point_level();
+    let (xs, ys) = (&hs.levels[level], &ht.levels[level]);
     for i in 0..xs.len() {
         let f = (0..ys.len())
             .map(|j| sq(&xs.pos[i], &ys.pos[j]) - g[j])
