@@ -228,19 +228,25 @@ fn local_rebuild_keeps_every_pair_it_promises() {
         max_moved: xs.len(),
         max_pairs: usize::MAX,
     };
-    let Some(Local::Built(rows, cols)) = rebuild_local(
-        &hs,
-        &ht,
-        level,
-        &mut kern,
-        &g0,
-        &g,
-        &mut f_ref,
-        &mut g_ref,
-        eps,
-        limits,
-        Wrap::Clamp,
-    ) else {
+    let rebuild = |kern: &mut Kernel, g_then: &[f64], g: &[f64], refs: (&mut [f64], &mut [f64])| {
+        let (f_ref, g_ref) = refs;
+        let (hs, ht) = (&hs, &ht);
+        rebuild_local(
+            hs,
+            ht,
+            level,
+            kern,
+            g_then,
+            g,
+            f_ref,
+            g_ref,
+            eps,
+            limits,
+            Wrap::Clamp,
+        )
+    };
+    let Some(Local::Built(rows, cols)) = rebuild(&mut kern, &g0, &g, (&mut f_ref, &mut g_ref))
+    else {
         panic!("the local rebuild was refused");
     };
     assert!(
@@ -271,19 +277,7 @@ fn local_rebuild_keeps_every_pair_it_promises() {
         })
         .collect();
     let first = kern.clone();
-    let Some(Local::Built(rows2, _)) = rebuild_local(
-        &hs,
-        &ht,
-        level,
-        &mut kern,
-        &g,
-        &g2,
-        &mut f_ref,
-        &mut g_ref,
-        eps,
-        limits,
-        Wrap::Clamp,
-    ) else {
+    let Some(Local::Built(rows2, _)) = rebuild(&mut kern, &g, &g2, (&mut f_ref, &mut g_ref)) else {
         panic!("the second local rebuild was refused");
     };
     keeps_its_promise(&hs, &ht, &kern, &first, &g2, (theta, tau, eps));
