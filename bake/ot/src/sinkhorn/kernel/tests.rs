@@ -321,7 +321,7 @@ fn keeps_its_promise<const D: usize>(
     hs: &Hierarchy<D>,
     ht: &Hierarchy<D>,
     kern: &Kernel,
-    whole: &Kernel,
+    before: &Kernel,
     g: &[f64],
     (theta, tau, eps): (f64, f64, f64),
 ) {
@@ -334,7 +334,7 @@ fn keeps_its_promise<const D: usize>(
         assert_eq!(kern.f[i], f, "row {i}: f is the exact row minimum");
         let kept = &kern.col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
         assert!(kept.windows(2).all(|w| w[0] < w[1]), "row {i} is sorted");
-        for j in &whole.col[whole.row_ptr[i]..whole.row_ptr[i + 1]] {
+        for j in &before.col[before.row_ptr[i]..before.row_ptr[i + 1]] {
             assert!(kept.contains(j), "pair ({i},{j}) of the old kernel is kept");
         }
         for j in 0..ys.len() {
@@ -349,7 +349,7 @@ fn keeps_its_promise<const D: usize>(
     // the new ones exactly), and the column form the same pairs.
     let mut rescaled = 0;
     for i in 0..xs.len() {
-        let old = &whole.col[whole.row_ptr[i]..whole.row_ptr[i + 1]];
+        let old = &before.col[before.row_ptr[i]..before.row_ptr[i + 1]];
         for p in kern.row_ptr[i]..kern.row_ptr[i + 1] {
             let j = kern.col[p] as usize;
             let c = sq(&xs.pos[i], &ys.pos[j]);
@@ -363,7 +363,7 @@ fn keeps_its_promise<const D: usize>(
             }
         }
     }
-    assert!(rescaled > whole.pairs() / 2, "{rescaled} rescaled entries");
+    assert!(rescaled > before.pairs() / 2, "{rescaled} rescaled entries");
     let (col_ptr, row) = kern.columns();
     assert_eq!(row.len(), kern.pairs());
     for j in 0..ys.len() {
