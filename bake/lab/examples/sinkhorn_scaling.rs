@@ -44,7 +44,7 @@ fn main() {
             "blur_spacing" => settings.blur_spacing = Some(v),
             "tolerance" => settings.tolerance = v,
             "truncate" => settings.truncate = v,
-            "auction_eps" => settings.auction_eps = v,
+            "auction_eps" => settings.auction_eps = Some(v),
             "scaling" => settings.scaling = v,
             "seed" => seed = v as u64,
             "res" => brdf_res = v as usize,

@@ -313,7 +313,7 @@ where
 /// Asks the processor to bring the cache line holding `p` (the address is not dereferenced;
 /// nothing where the architecture has no such hint).
 #[inline(always)]
-fn prefetch<T>(p: *const T) {
+pub(crate) fn prefetch<T>(p: *const T) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: SSE is part of every x86-64 processor, and a prefetch never faults, whatever the
     // address: it reads nothing the program sees.

@@ -93,6 +93,7 @@ mod auction;
 pub mod barycenter;
 mod circular;
 mod cost;
+mod cycles;
 mod error;
 mod exact;
 pub mod memory;

@@ -235,7 +235,7 @@ fn sinkhorn(loc: &Locator<'_>, s: &RawSolver) -> Result<SinkhornSettings, Manife
         &|v| v > 0.0 && v <= 1.0,
         "in (0, 1] (the auction's final epsilon as a fraction of Sinkhorn's)",
     )? {
-        sk.auction_eps = v;
+        sk.auction_eps = Some(v);
     }
     if let Some(it) = &s.max_iterations {
         if *it.get_ref() == 0 {

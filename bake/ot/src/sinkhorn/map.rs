@@ -1,7 +1,9 @@
 //! The map read off the final stage: the barycentric projection of the plan, or a one-to-one
 //! matching by a sparse auction on the final kernel's support, in the caller's order. Rows whose
 //! prices rise past what the support certifies are widened by exact searches, and rows a price war
-//! parks are placed by sparse shortest paths ([`super::complete`], D144). An auction that still
+//! parks are placed by sparse shortest paths ([`super::complete`], D144); short cycles along the
+//! candidates then take back what the auction's ε gave away locally ([`crate::cycles`], D164).
+//! An auction that still
 //! cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114); the
 //! barycentric map is then computed only for the cost its report states.
 
@@ -13,9 +15,10 @@ use super::report::report_of;
 use super::schedule::Plan;
 use super::stages::Stages;
 use super::state::{RefineInfo, State};
-use super::{MapKind, SinkhornSettings};
+use super::{MapKind, SinkhornSettings, DEFAULT_AUCTION_EPS};
 use crate::auction::{auction, Graph};
 use crate::cost::{delta, sq};
+use crate::cycles::{cancel, Cancelled, CycleSearch, Lists};
 use crate::{Problem, Solution, SolveError, Wrap};
 use rayon::prelude::*;
 
@@ -194,13 +197,28 @@ fn barycentric<const D: usize>(
 }
 
 /// The auction's first ε as a fraction of the final Sinkhorn ε (it goes down from there by 4 per
-/// phase to `auction_eps`, 1/4 by default: one phase). The Sinkhorn potentials are already good
+/// phase to `auction_eps`; by default one phase, at 1/2 in 2D and 1/4 in 3D, D164). The Sinkhorn potentials are already good
 /// prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow instead of 3.23M in two phases
 /// from ε, and 10.8M instead of 17.8M on the 1M cow, with the same cost to 7 digits. In 2D two
 /// phases from ε took 16% fewer bids on the 250K duck at seed 0, but at seed 1 the second phase
 /// freed 131K rows and its last free row was still bidding after 100M bids; one phase from ε/4
 /// took 7.39M bids and widened no row (D145).
 const AUCTION_START: f64 = 0.25;
+
+/// How far the cycles after the auction look (D164): a swap with the owners of a row's first 8
+/// candidates, cycles of three through the first 6 of the row's and of each owner's. More found
+/// no more than the noise at 5K points (16 and 8: the same cost ratios to 2e-5) and took a third
+/// longer.
+const CYCLES: CycleSearch = CycleSearch {
+    pairs: 8,
+    triples: 6,
+    passes: 16,
+    min_gain: 0.0,
+};
+
+/// The least gain of a cycle, in units of the final ε: far above the rounding of the costs (the
+/// lists' `f32` values only prune), far below anything a map shows.
+const MIN_GAIN: f64 = 1e-6;
 
 /// The part of the truncation's margin θε up to which the auction trusts the final kernel to hold
 /// a row's best columns (`auction::Graph::certified`): a whole build drops only pairs more than θε
@@ -247,6 +265,7 @@ fn refine_assignment<const D: usize>(
     // Per row: f_i = min over the candidates of C_ij − g_j, then the candidates' C_ij − g_j − f_i,
     // written over the kernel's values (which the auction no longer needs: no second pair array).
     let col = &kern.col;
+    let t0 = std::time::Instant::now();
     let f = map_lists_mut(&kern.row_ptr, &mut kern.k, |i, red| {
         let cols = &col[kern.row_ptr[i]..kern.row_ptr[i + 1]];
         let h = |j: u32| sq(wrap, &x[i], &y[j as usize]) - g[j as usize];
@@ -260,7 +279,9 @@ fn refine_assignment<const D: usize>(
     });
     // Each row's candidates by ascending reduced cost: a bid then stops reading a row at the
     // first candidate that cannot beat its second best (prices only fall), which is most of them.
+    let t1 = std::time::Instant::now();
     sort_lists_by_value(&kern.row_ptr, &mut kern.col, &mut kern.k);
+    let t2 = std::time::Instant::now();
     let (row_ptr, col, red) = (&kern.row_ptr, &kern.col, &kern.k);
     let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]) - f[i] - g[j];
     let certified = CERTIFIED * settings.truncate * eps;
@@ -274,6 +295,14 @@ fn refine_assignment<const D: usize>(
         certified,
     };
     let bnd = bounds(&plan.ht, plan.point_level, &g);
+    if std::env::var_os("OTBAKE_TRACE").is_some() {
+        eprintln!(
+            "  auction's costs {:.2}s, sorted {:.2}s, bounds {:.2}s",
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64(),
+            t2.elapsed().as_secs_f64()
+        );
+    }
     let completion = Completion {
         ht: &plan.ht,
         level: plan.point_level,
@@ -298,26 +327,50 @@ fn refine_assignment<const D: usize>(
         &graph,
         &mut v,
         eps * AUCTION_START,
-        eps * settings.auction_eps,
+        eps * settings
+            .auction_eps
+            .unwrap_or(DEFAULT_AUCTION_EPS[D.min(3)]),
         4.0,
         side * side * D as f64,
         &mut beyond,
     );
     let completed = beyond.done;
+    // What ε-complementary slackness gave away locally, taken back by short cycles (D164).
+    let mut m = m;
+    let tc = std::time::Instant::now();
+    let cycles = if m.unassigned == 0 {
+        let lists = Lists {
+            row_ptr,
+            col,
+            value: red,
+        };
+        let search = CycleSearch {
+            min_gain: MIN_GAIN * eps,
+            ..CYCLES
+        };
+        cancel(&mut m.x, &lists, graph.cost, &search)
+    } else {
+        Cancelled::default()
+    };
     if std::env::var_os("OTBAKE_TRACE").is_some() {
         eprintln!(
             "  auction: {} phases, {} bids, {} rows certified further, {} widened ({} columns), \
-             {} searches {:.2}s",
+             {} searches {:.2}s; {} swaps, {} three-row cycles in {} passes {:.2}s",
             m.phases,
             m.bids,
             completed.certified,
             completed.widened,
             completed.wide_cols,
             completed.searches,
-            completed.searching.as_secs_f64()
+            completed.searching.as_secs_f64(),
+            cycles.pairs,
+            cycles.triples,
+            cycles.passes,
+            tc.elapsed().as_secs_f64(),
         );
     }
     RefineInfo {
+        cycles,
         unassigned: m.unassigned,
         phases: m.phases,
         bids: m.bids,

@@ -63,7 +63,7 @@ mod stages;
 mod state;
 
 pub(crate) use iterate::pair_limit;
-pub use settings::{MapKind, SinkhornSettings, DEFAULT_BLUR_SPACING};
+pub use settings::{MapKind, SinkhornSettings, DEFAULT_AUCTION_EPS, DEFAULT_BLUR_SPACING};
 
 use crate::{Problem, Solution, SolveError, Wrap};
 use hierarchy::Grid;

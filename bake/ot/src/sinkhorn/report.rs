@@ -30,13 +30,16 @@ pub(super) fn report_of(
         (MapKind::Assignment, Some(r)) if r.unassigned == 0 => (
             format!(
                 "assignment (auction: {} phases, {} bids; beyond the kernel's support: {} rows \
-                 certified further, {} widened with {} columns, {} augmenting paths)",
+                 certified further, {} widened with {} columns, {} augmenting paths; then {} \
+                 swaps and {} three-row cycles)",
                 r.phases,
                 r.bids,
                 r.completion.certified,
                 r.completion.widened,
                 r.completion.wide_cols,
-                r.completion.paths
+                r.completion.paths,
+                r.cycles.pairs,
+                r.cycles.triples
             ),
             true,
         ),

@@ -57,13 +57,12 @@ pub struct SinkhornSettings {
     /// How the map is read off the plan.
     pub map: MapKind,
     /// `map = "assignment"` only: the auction's final ε as a fraction of the final Sinkhorn ε.
-    /// The matching is within n·ε_auction of the best the kernel's support allows; each division
-    /// by 4 is one more auction phase (about 10 bids per point). Default 1/4 (one phase: the
-    /// auction starts at ε/4, D145): at 5K points the cost is within 0.03% of exact and the
-    /// L2-UVP 0.05%; 1/16 gives 0.002% and 0.015%, 1 (one phase at ε) 0.12% and 0.1%
-    /// (BENCHMARKS.md). A second phase can take minutes on large inputs: its price war parks
-    /// rows for augmenting paths (the 250K duck at 1/16 ran past 150 s, D161).
-    pub auction_eps: f64,
+    /// The auction's matching is within n·ε_auction of the best the kernel's support allows, and
+    /// short cycles then take back most of what it gave away locally (D164); each division by 4
+    /// is one more auction phase. `None`: `DEFAULT_AUCTION_EPS` for the dimension (one phase). A
+    /// second phase can take minutes on large inputs: its price war parks rows for augmenting
+    /// paths (the 250K duck at 1/16 ran past 150 s, D161).
+    pub auction_eps: Option<f64>,
 }
 
 impl Default for SinkhornSettings {
@@ -76,7 +75,7 @@ impl Default for SinkhornSettings {
             max_iterations: 2000,
             truncate: 8.0,
             map: MapKind::Assignment,
-            auction_eps: 0.25,
+            auction_eps: None,
         }
     }
 }
@@ -100,8 +99,9 @@ impl Default for SinkhornSettings {
 /// potential to the next stage sums its exponentials by a polynomial, not libm (D162; the
 /// measured maps kept every byte, but a near-tie elsewhere may not). 13: a local rebuild searches
 /// what moved since it was last searched, at (θ + τ)ε, not everything that moved since the last
-/// whole build (D163).
-const REVISION: u32 = 13;
+/// whole build (D163). 14: short cycles after the auction, and its final ε by dimension, 1/2 in
+/// 2D (D164).
+const REVISION: u32 = 14;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {
@@ -155,7 +155,7 @@ impl SinkhornSettings {
                 "must be at least 1 (8 keeps entries above e^-8)",
             );
         }
-        if !(self.auction_eps > 0.0 && self.auction_eps <= 1.0) {
+        if !self.auction_eps.is_none_or(|e| e > 0.0 && e <= 1.0) {
             return bad(
                 "auction_eps",
                 "must be in (0, 1] (a fraction of the final Sinkhorn epsilon)",
@@ -170,6 +170,13 @@ impl SinkhornSettings {
 /// 2D keeps about 60 pairs per point at θ = 8, and 1.0 in 3D about 100 (1.5 in 3D kept 315, and the
 /// bake of a 50K mesh volume took 4.7 times as long).
 pub const DEFAULT_BLUR_SPACING: [f64; 4] = [1.5, 1.5, 1.5, 1.0];
+
+/// Default `auction_eps` by dimension (index 1, 2, 3; 3 also for 4D). With the cycles after the
+/// auction, 1/2 in 2D is as close to exact at 5K points as 1/4 was without them (the duck, heart
+/// and tooth within 2e-5 of their cost ratios or better) for about 40% fewer bids; in 3D 1/2 with
+/// the cycles is further from exact than 1/4 without them (5K cow 1.0020 against 1.0014), and
+/// 1/4 with them is nearer (1.0009) (D164).
+pub const DEFAULT_AUCTION_EPS: [f64; 4] = [0.5, 0.5, 0.5, 0.25];
 
 /// Tolerance of the stages before the last, as a fraction of `tolerance`. The marginal error of a
 /// stage bounds its potentials' error poorly at long wavelengths, and the next, halved ε sees that

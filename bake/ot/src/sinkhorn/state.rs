@@ -4,6 +4,7 @@
 use super::complete::Completed;
 use super::hierarchy::Hierarchy;
 use super::kernel::Kernel;
+use crate::cycles::Cancelled;
 
 /// What one stage did (for the report).
 pub(super) struct StageLog {
@@ -52,6 +53,8 @@ pub(super) struct RefineInfo {
     pub bids: u64,
     /// What the augmenting paths that completed the sparse auction did.
     pub completion: Completed,
+    /// What the short cycles after the auction did.
+    pub cycles: Cancelled,
 }
 
 impl RefineInfo {
