@@ -61,10 +61,10 @@ struct Cycle {
     len: usize,
 }
 
-/// Lowers the cost of the matching `x` (row → column, [`NONE`] for a row without one) by cycles of two and three rows
-/// along `lists`. `cost(i, j)` is the exact cost of any pair, up to a constant per row and per
-/// column, and no lower than 0 wherever a cycle might close (else the pruning may miss it); a
-/// cycle is taken on `cost` alone.
+/// Lowers the cost of the matching `x` (row → column, [`NONE`] for a row without one) by cycles
+/// of two and three rows along `lists`. `cost(i, j)` is the exact cost of any pair, up to a
+/// constant per row and per column, and no lower than 0 wherever a cycle might close (else the
+/// pruning may miss it); a cycle is taken on `cost` alone.
 pub(crate) fn cancel<C: Fn(usize, usize) -> f64 + Sync>(
     x: &mut [u32],
     lists: &Lists<'_>,
@@ -76,8 +76,9 @@ pub(crate) fn cancel<C: Fn(usize, usize) -> f64 + Sync>(
     for (i, &j) in x.iter().enumerate().filter(|(_, &j)| j != NONE) {
         y[j as usize] = i as u32;
     }
-    // Each column's owner's cost: a search reads it by the candidate's column, near the row's
-    // own in memory, and the owner only when a cycle may gain.
+    // The cost of each column's pair, kept by column: a search reads it at the candidate's
+    // column (a row's candidates lie close together in memory), and reads the column's owner
+    // only when a cycle may gain.
     let own: Vec<f64> = y
         .par_iter()
         .enumerate()
