@@ -12,6 +12,7 @@
 //! any thread count, and every applied cycle lowers the exact cost by more than a floor, so the
 //! passes end.
 
+use crate::auction::prefetch;
 use rayon::prelude::*;
 
 /// "Unassigned", in the matching and as a column's owner.
@@ -161,14 +162,14 @@ impl Matching<'_> {
             let e = e.min(s + n);
             lists.col[s..e].iter().zip(&lists.value[s..e])
         };
-        for &b in &lists.col
-            [lists.row_ptr[i]..lists.row_ptr[i + 1].min(lists.row_ptr[i] + search.triples)]
-        {
+        // A cycle of three reads the owners' lists, elsewhere in memory: fetched while the swaps
+        // are tried.
+        for (&b, _) in first(i, search.triples) {
             let k = self.y[b as usize];
             if k != NONE {
                 let p = lists.row_ptr[k as usize];
-                crate::auction::prefetch(lists.col.as_ptr().wrapping_add(p));
-                crate::auction::prefetch(lists.value.as_ptr().wrapping_add(p));
+                prefetch(lists.col.as_ptr().wrapping_add(p));
+                prefetch(lists.value.as_ptr().wrapping_add(p));
             }
         }
         let own = &self.own;

@@ -3,9 +3,9 @@
 //! prices rise past what the support certifies are widened by exact searches, and rows a price war
 //! parks are placed by sparse shortest paths ([`super::complete`], D144); short cycles along the
 //! candidates then take back what the auction's ε gave away locally ([`crate::cycles`], D164).
-//! An auction that still
-//! cannot match every row is an error (`SolveError::NotConverged`, docs/decisions.md, D114); the
-//! barycentric map is then computed only for the cost its report states.
+//! An auction that still cannot match every row is an error (`SolveError::NotConverged`,
+//! docs/decisions.md, D114); the barycentric map is then computed only for the cost its report
+//! states.
 
 use super::complete::{Beyond, Completion, Support};
 use super::hierarchy::Hierarchy;
@@ -197,8 +197,8 @@ fn barycentric<const D: usize>(
 }
 
 /// The auction's first ε as a fraction of the final Sinkhorn ε (it goes down from there by 4 per
-/// phase to `auction_eps`; by default one phase, at 1/2 in 2D and 1/4 in 3D, D164). The Sinkhorn potentials are already good
-/// prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow instead of 3.23M in two phases
+/// phase to `auction_eps`; by default one phase, at 1/2 in 2D and 1/4 in 3D, D164). The Sinkhorn
+/// potentials are already good prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow instead of 3.23M in two phases
 /// from ε, and 10.8M instead of 17.8M on the 1M cow, with the same cost to 7 digits. In 2D two
 /// phases from ε took 16% fewer bids on the 250K duck at seed 0, but at seed 1 the second phase
 /// freed 131K rows and its last free row was still bidding after 100M bids; one phase from ε/4
@@ -208,17 +208,16 @@ const AUCTION_START: f64 = 0.25;
 /// How far the cycles after the auction look (D164): a swap with the owners of a row's first 8
 /// candidates, cycles of three through the first 6 of the row's and of each owner's. More found
 /// no more than the noise at 5K points (16 and 8: the same cost ratios to 2e-5) and took a third
-/// longer.
-const CYCLES: CycleSearch = CycleSearch {
-    pairs: 8,
-    triples: 6,
-    passes: 16,
-    min_gain: 0.0,
-};
-
-/// The least gain of a cycle, in units of the final ε: far above the rounding of the costs (the
-/// lists' `f32` values only prune), far below anything a map shows.
-const MIN_GAIN: f64 = 1e-6;
+/// longer. The least gain, 1e-6 ε, is far above the rounding of the costs (the lists' `f32` values
+/// only prune) and far below anything a map shows.
+fn cycle_search(eps: f64) -> CycleSearch {
+    CycleSearch {
+        pairs: 8,
+        triples: 6,
+        passes: 16,
+        min_gain: 1e-6 * eps,
+    }
+}
 
 /// The part of the truncation's margin θε up to which the auction trusts the final kernel to hold
 /// a row's best columns (`auction::Graph::certified`): a whole build drops only pairs more than θε
@@ -295,14 +294,7 @@ fn refine_assignment<const D: usize>(
         certified,
     };
     let bnd = bounds(&plan.ht, plan.point_level, &g);
-    if std::env::var_os("OTBAKE_TRACE").is_some() {
-        eprintln!(
-            "  auction's costs {:.2}s, sorted {:.2}s, bounds {:.2}s",
-            (t1 - t0).as_secs_f64(),
-            (t2 - t1).as_secs_f64(),
-            t2.elapsed().as_secs_f64()
-        );
-    }
+    let setup = [t1 - t0, t2 - t1, t2.elapsed()].map(|t| t.as_secs_f64());
     let completion = Completion {
         ht: &plan.ht,
         level: plan.point_level,
@@ -323,7 +315,7 @@ fn refine_assignment<const D: usize>(
     // (a price war) is placed by augmenting paths on edges searched where the paths go.
     let mut beyond = Beyond::new(&completion, &f);
     let mut v = vec![0.0; y.len()];
-    let m = auction(
+    let mut m = auction(
         &graph,
         &mut v,
         eps * AUCTION_START,
@@ -336,7 +328,6 @@ fn refine_assignment<const D: usize>(
     );
     let completed = beyond.done;
     // What ε-complementary slackness gave away locally, taken back by short cycles (D164).
-    let mut m = m;
     let tc = std::time::Instant::now();
     let cycles = if m.unassigned == 0 {
         let lists = Lists {
@@ -344,18 +335,18 @@ fn refine_assignment<const D: usize>(
             col,
             value: red,
         };
-        let search = CycleSearch {
-            min_gain: MIN_GAIN * eps,
-            ..CYCLES
-        };
-        cancel(&mut m.x, &lists, graph.cost, &search)
+        cancel(&mut m.x, &lists, graph.cost, &cycle_search(eps))
     } else {
         Cancelled::default()
     };
     if std::env::var_os("OTBAKE_TRACE").is_some() {
         eprintln!(
-            "  auction: {} phases, {} bids, {} rows certified further, {} widened ({} columns), \
-             {} searches {:.2}s; {} swaps, {} three-row cycles in {} passes {:.2}s",
+            "  auction's costs {:.2}s, sorted {:.2}s, bounds {:.2}s\n  auction: {} phases, {} \
+             bids, {} rows certified further, {} widened ({} columns), {} searches {:.2}s; {} \
+             swaps, {} three-row cycles in {} passes {:.2}s",
+            setup[0],
+            setup[1],
+            setup[2],
             m.phases,
             m.bids,
             completed.certified,
