@@ -198,11 +198,11 @@ fn barycentric<const D: usize>(
 
 /// The auction's first ε as a fraction of the final Sinkhorn ε (it goes down from there by 4 per
 /// phase to `auction_eps`; by default one phase, at 1/2 in 2D and 1/4 in 3D, D164). The Sinkhorn
-/// potentials are already good prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow instead of 3.23M in two phases
-/// from ε, and 10.8M instead of 17.8M on the 1M cow, with the same cost to 7 digits. In 2D two
-/// phases from ε took 16% fewer bids on the 250K duck at seed 0, but at seed 1 the second phase
-/// freed 131K rows and its last free row was still bidding after 100M bids; one phase from ε/4
-/// took 7.39M bids and widened no row (D145).
+/// potentials are already good prices at ε/4: in 3D one phase took 1.58M bids on the 250K cow
+/// instead of 3.23M in two phases from ε, and 10.8M instead of 17.8M on the 1M cow, with the same
+/// cost to 7 digits. In 2D two phases from ε took 16% fewer bids on the 250K duck at seed 0, but
+/// at seed 1 the second phase freed 131K rows and its last free row was still bidding after 100M
+/// bids; one phase from ε/4 took 7.39M bids and widened no row (D145).
 const AUCTION_START: f64 = 0.25;
 
 /// How far the cycles after the auction look (D164): a swap with the owners of a row's first 8
