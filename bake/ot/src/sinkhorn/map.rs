@@ -10,6 +10,7 @@
 use super::complete::{Beyond, Completion, Support};
 use super::hierarchy::Hierarchy;
 use super::kernel::{bounds, map_lists_mut, sort_lists_by_value, Kernel};
+use super::outline::{outline_prices, Scale};
 use super::potentials::absorbed;
 use super::report::report_of;
 use super::schedule::Plan;
@@ -314,14 +315,27 @@ fn refine_assignment<const D: usize>(
     // Rows the support cannot place are widened by exact searches; what the auction still parks
     // (a price war) is placed by augmenting paths on edges searched where the paths go.
     let mut beyond = Beyond::new(&completion, &f);
-    let mut v = vec![0.0; y.len()];
+    let step = eps
+        * settings
+            .auction_eps
+            .unwrap_or(DEFAULT_AUCTION_EPS[D.min(3)]);
+    // On the torus the target has no outline to start from (and the grid would need its images).
+    let mut v = if wrap == Wrap::Periodic {
+        vec![0.0; y.len()]
+    } else {
+        let scale = Scale {
+            spacing: plan.spacing,
+            side,
+            step,
+            certified,
+        };
+        outline_prices(&plan.ht, plan.point_level, scale)
+    };
     let mut m = auction(
         &graph,
         &mut v,
         eps * AUCTION_START,
-        eps * settings
-            .auction_eps
-            .unwrap_or(DEFAULT_AUCTION_EPS[D.min(3)]),
+        step,
         4.0,
         side * side * D as f64,
         &mut beyond,

@@ -45,9 +45,10 @@
 //! The steps, one module each: [`schedule`] (the hierarchies and the blur of every stage),
 //! [`stages`] (each stage's start, kernel and tolerance), [`iterate`] (the scaling iterations and
 //! the kernel rebuilds they trigger), [`potentials`] (moving potentials between stages), [`map`]
-//! (reading the map off the final plan), [`complete`] (the auction beyond the final kernel's
-//! support) and [`report`]; [`kernel`] and [`hierarchy`] are the data
-//! structures, [`state`] what the steps hand each other, [`settings`] the configuration.
+//! (reading the map off the final plan), [`outline`] (where the auction's prices start),
+//! [`complete`] (the auction beyond the final kernel's support) and [`report`]; [`kernel`] and
+//! [`hierarchy`] are the data structures, [`state`] what the steps hand each other, [`settings`]
+//! the configuration.
 
 mod complete;
 mod fastexp;
@@ -55,6 +56,7 @@ mod hierarchy;
 mod iterate;
 mod kernel;
 mod map;
+mod outline;
 mod potentials;
 mod report;
 mod schedule;

@@ -102,7 +102,8 @@ impl Default for SinkhornSettings {
 /// what moved since it was last searched, at (θ + τ)ε, not everything that moved since the last
 /// whole build (D163). 14: short cycles after the auction, and its final ε by dimension, 1/2 in
 /// 2D (D164). 15: the final tolerance 1.5e-3 by default, earlier stages still at 3e-4 (D165).
-const REVISION: u32 = 15;
+/// 16: the auction's prices start lowered away from the target's outline (D169).
+const REVISION: u32 = 16;
 
 impl SinkhornSettings {
     pub(crate) fn fingerprint(&self) -> String {
