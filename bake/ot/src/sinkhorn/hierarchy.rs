@@ -77,7 +77,8 @@ impl<const D: usize> Grid<D> {
         Self { origin: lo, side }
     }
 
-    /// Morton code of a point (cells of side `side / 2^bits`).
+    /// Morton code of a point (cells of side `side / 2^bits`): the axes' bits interleaved from
+    /// the most significant down, axis 0 first in each group.
     fn code(&self, p: &[f64; D]) -> u64 {
         let b = bits(D);
         let cells = (1u64 << b) as f64;
@@ -91,28 +92,85 @@ impl<const D: usize> Grid<D> {
             };
             q[k] = (t.max(0.0) as u64).min(max);
         }
-        let mut code = 0u64;
-        for bit in (0..b).rev() {
-            for qk in q.iter() {
-                code = (code << 1) | ((qk >> bit) & 1);
-            }
+        interleave(&q)
+    }
+}
+
+/// The bits of `q` (each below 2^bits(D)) interleaved, axis 0 the most significant of each group:
+/// by spreading masks in 2D and 3D (the solve's cases: a bit loop was most of sorting the points),
+/// bit by bit otherwise.
+fn interleave<const D: usize>(q: &[u64; D]) -> u64 {
+    match D {
+        2 => (spread2(q[0]) << 1) | spread2(q[1]),
+        3 => (spread3(q[0]) << 2) | (spread3(q[1]) << 1) | spread3(q[2]),
+        _ => interleave_bits(q),
+    }
+}
+
+fn interleave_bits<const D: usize>(q: &[u64; D]) -> u64 {
+    let mut code = 0u64;
+    for bit in (0..bits(D)).rev() {
+        for qk in q.iter() {
+            code = (code << 1) | ((qk >> bit) & 1);
         }
-        code
+    }
+    code
+}
+
+/// The low 32 bits of `x` at the even bit positions.
+fn spread2(x: u64) -> u64 {
+    let mut x = x & 0xffff_ffff;
+    x = (x | (x << 16)) & 0x0000_ffff_0000_ffff;
+    x = (x | (x << 8)) & 0x00ff_00ff_00ff_00ff;
+    x = (x | (x << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+    x = (x | (x << 2)) & 0x3333_3333_3333_3333;
+    (x | (x << 1)) & 0x5555_5555_5555_5555
+}
+
+/// The low 21 bits of `x` at every third bit position.
+fn spread3(x: u64) -> u64 {
+    let mut x = x & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    (x | (x << 2)) & 0x1249_2492_4924_9249
+}
+
+/// A cloud's points by Morton code: (code, index), ascending (a strict total order, so the result
+/// does not depend on the sort's splits). Sorted once and shared by the plan's cell counts and
+/// the hierarchy.
+pub(super) struct Sorted(Vec<(u64, u32)>);
+
+impl Sorted {
+    pub fn new<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -> Self {
+        let mut keyed: Vec<(u64, u32)> = points
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| (grid.code(p), i as u32))
+            .collect();
+        keyed.par_sort_unstable();
+        Self(keyed)
     }
 }
 
 impl<const D: usize> Hierarchy<D> {
     /// Sorts `points` in Morton order and builds the cell levels `0..=max_level` plus the point
     /// level.
+    #[cfg(test)]
     pub fn new(points: &[[f64; D]], grid: &Grid<D>, max_level: u32) -> Self {
+        Self::from_sorted(points, Sorted::new(points, grid), grid, max_level)
+    }
+
+    /// [`Hierarchy::new`] from the points' [`Sorted`] order.
+    pub fn from_sorted(
+        points: &[[f64; D]],
+        sorted: Sorted,
+        grid: &Grid<D>,
+        max_level: u32,
+    ) -> Self {
         let n = points.len();
-        let mut keyed: Vec<(u64, u32)> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| (grid.code(p), i as u32))
-            .collect();
-        // (code, index) is a strict total order: the result does not depend on the sort's splits.
-        keyed.par_sort_unstable();
+        let keyed = sorted.0;
         let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
         let sorted: Vec<[f64; D]> = order.iter().map(|&i| points[i as usize]).collect();
 
@@ -270,9 +328,14 @@ impl LevelCount {
 
 /// The occupied cells and the points sharing them of every level `0..=bits(D)` (for choosing the
 /// final blur and the finest cell level).
+#[cfg(test)]
 pub(super) fn cell_counts<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -> Vec<LevelCount> {
-    let mut codes: Vec<u64> = points.par_iter().map(|p| grid.code(p)).collect();
-    codes.par_sort_unstable();
+    level_counts::<D>(&Sorted::new(points, grid))
+}
+
+/// [`cell_counts`] from the points' [`Sorted`] order.
+pub(super) fn level_counts<const D: usize>(sorted: &Sorted) -> Vec<LevelCount> {
+    let codes = &sorted.0;
     let b = bits(D);
     (0..=b)
         .into_par_iter()
@@ -283,8 +346,8 @@ pub(super) fn cell_counts<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -
             let mut cells = 0usize;
             let mut pairs = 0u128;
             let mut run = 0u128;
-            for (k, &c) in codes.iter().enumerate() {
-                if k > 0 && prefix(c) != prefix(codes[k - 1]) {
+            for (k, &(c, _)) in codes.iter().enumerate() {
+                if k > 0 && prefix(c) != prefix(codes[k - 1].0) {
                     cells += 1;
                     pairs += run * (run - 1);
                     run = 0;
@@ -306,6 +369,27 @@ pub(super) fn cell_counts<const D: usize>(points: &[[f64; D]], grid: &Grid<D>) -
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spreading_masks_interleave_as_the_bit_loop() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for _ in 0..10_000 {
+            let q2 = [next() >> 34, next() >> 34];
+            assert_eq!(interleave(&q2), interleave_bits(&q2), "{q2:?}");
+            let q3 = [next() >> 43, next() >> 43, next() >> 43];
+            assert_eq!(interleave(&q3), interleave_bits(&q3), "{q3:?}");
+        }
+        let top2 = [(1u64 << bits(2)) - 1; 2];
+        assert_eq!(interleave(&top2), interleave_bits(&top2));
+        let top3 = [(1u64 << bits(3)) - 1; 3];
+        assert_eq!(interleave(&top3), interleave_bits(&top3));
+    }
 
     #[test]
     fn levels_nest_and_conserve_mass() {

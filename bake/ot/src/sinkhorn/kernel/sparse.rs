@@ -220,9 +220,14 @@ pub(super) fn merge_lists_in_place<'a, I>(
 ) where
     I: DoubleEndedIterator<Item = u32> + 'a,
 {
+    // A list with nothing to add keeps its length without reading it (most lists, in a local
+    // rebuild).
     let lens: Vec<usize> = (0..ptr.len() - 1)
         .into_par_iter()
-        .map(|i| union(&idx[ptr[i]..ptr[i + 1]], new(i)).count())
+        .map(|i| match new(i).next() {
+            None => ptr[i + 1] - ptr[i],
+            Some(_) => union(&idx[ptr[i]..ptr[i + 1]], new(i)).count(),
+        })
         .collect();
     let m = lens.len();
     let new_ptr = pointers(lens.into_iter());
