@@ -251,7 +251,13 @@ impl<const D: usize> Blurred<D> {
             return 0.0;
         }
         let d2: f64 = (0..D).map(|k| (sum[k + 1] / sum[0] - p[k]).powi(2)).sum();
-        d2.sqrt() / self.side
+        // A non-finite score (no point is, but the prices must never be) counts as inside.
+        let score = d2.sqrt() / self.side;
+        if score.is_finite() {
+            score
+        } else {
+            0.0
+        }
     }
 }
 
