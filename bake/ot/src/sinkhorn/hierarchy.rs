@@ -372,13 +372,8 @@ mod tests {
 
     #[test]
     fn spreading_masks_interleave_as_the_bit_loop() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut rng = crate::rng::SplitMix64::new(3);
+        let mut next = move || rng.next_u64();
         for _ in 0..10_000 {
             let q2 = [next() >> 34, next() >> 34];
             assert_eq!(interleave(&q2), interleave_bits(&q2), "{q2:?}");

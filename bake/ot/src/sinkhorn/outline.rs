@@ -265,16 +265,12 @@ impl<const D: usize> Blurred<D> {
 mod tests {
     use super::super::hierarchy::{Grid, Hierarchy};
     use super::*;
+    use crate::rng::SplitMix64;
 
     /// A jittered grid of `k`² points over the unit square, those `keep` accepts.
     fn jittered(k: usize, keep: impl Fn(&[f64; 2]) -> bool) -> Vec<[f64; 2]> {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut unit = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = SplitMix64::new(7);
+        let mut unit = move || rng.next_f64();
         let h = 1.0 / k as f64;
         let mut out = Vec::new();
         for i in 0..k {
