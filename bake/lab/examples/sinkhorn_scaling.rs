@@ -43,7 +43,7 @@ fn main() {
         match k {
             "blur_spacing" => settings.blur_spacing = Some(v),
             "tolerance" => settings.tolerance = v,
-            "truncate" => settings.truncate = v,
+            "truncate" => settings.truncate = Some(v),
             "auction_eps" => settings.auction_eps = Some(v),
             "scaling" => settings.scaling = v,
             "seed" => seed = v as u64,

@@ -96,9 +96,10 @@ pub fn estimate_bytes(settings: &SolverSettings, n: usize, dim: usize) -> u64 {
 }
 
 /// The largest kernel Sinkhorn is expected to hold: `SINKHORN_PAIRS_PER_POINT` at the default
-/// blur, scaled by the blur's volume (`(blur_spacing / default)^dim`) and by the truncation's
-/// radius (`(truncate / 8)^(dim / 2)`; the 1M cow keeps 0.385 of its pairs at `truncate = 4`, the
-/// scale says 0.354), at least one per point (every row keeps its best column), capped by the
+/// blur and θ = 8, scaled by the blur's volume (`(blur_spacing / default)^dim`) and by the
+/// truncation's radius (`(θ / 8)^(dim / 2)`, θ the solve's, 6 by default in 2D; the 1M cow keeps
+/// 0.385 of its pairs at `truncate = 4`, the scale says 0.354), at least one per point (every row
+/// keeps its best column), capped by the
 /// solver's own limit (`sinkhorn::pair_limit`:
 /// max(2^27, 160 per point), at most 4096 per point; D115), which it refuses to pass. An explicit
 /// `blur` is taken at the default spacing (its spacing depends on the points).
@@ -107,7 +108,7 @@ pub fn sinkhorn_pairs(s: &SinkhornSettings, n: u64, dim: usize) -> u64 {
     let default = DEFAULT_BLUR_SPACING[d.min(3)];
     let spacing = s.blur_spacing.unwrap_or(default);
     let scale =
-        (spacing / default).powi(d as i32) * (s.truncate / 8.0).max(0.0).powf(d as f64 / 2.0);
+        (spacing / default).powi(d as i32) * (s.theta(d) / 8.0).max(0.0).powf(d as f64 / 2.0);
     let per_point = (SINKHORN_PAIRS_PER_POINT[d - 1] * scale).max(1.0);
     let limit = crate::sinkhorn::pair_limit(usize::try_from(n).unwrap_or(usize::MAX)) as u64;
     ((n as f64 * per_point) as u64).min(limit)
@@ -156,7 +157,7 @@ mod tests {
     #[test]
     fn a_smaller_truncation_needs_less() {
         let narrow = SinkhornSettings {
-            truncate: 4.0,
+            truncate: Some(4.0),
             ..SinkhornSettings::default()
         };
         let pairs = sinkhorn_pairs(&narrow, 1 << 20, 3);
@@ -165,7 +166,7 @@ mod tests {
         assert!(sixteen < 20 << 30, "{sixteen}");
         // Never below one pair per point.
         let tiny = SinkhornSettings {
-            truncate: 1e-6,
+            truncate: Some(1e-6),
             ..SinkhornSettings::default()
         };
         assert_eq!(sinkhorn_pairs(&tiny, 1000, 3), 1000);

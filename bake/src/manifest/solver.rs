@@ -224,9 +224,9 @@ fn sinkhorn(loc: &Locator<'_>, s: &RawSolver) -> Result<SinkhornSettings, Manife
         &s.truncate,
         "truncate",
         &|v| v.is_finite() && v >= 1.0,
-        "at least 1 (default 8)",
+        "at least 1 (default 6 in 2D, 8 in 3D)",
     )? {
-        sk.truncate = v;
+        sk.truncate = Some(v);
     }
     if let Some(v) = real(
         loc,

@@ -49,7 +49,7 @@ pub(super) fn build_kernel<const D: usize>(
 ) -> Result<Kernel, SolveError> {
     let rows = hs.levels[level].len().max(1);
     let limit = pair_limit(rows);
-    let truncate = settings.truncate;
+    let truncate = settings.theta(D);
     kernel::build(hs, ht, level, g, eps, truncate, wrap, limit, upper).ok_or_else(|| {
         let blur = eps.sqrt();
         SolveError::InvalidSettings {
@@ -225,7 +225,7 @@ pub(super) fn iterate<const D: usize>(
     let tol = goal.tolerance;
     let mut error = f64::INFINITY;
     let mut it = 0u32;
-    let drift = Drift::new(settings.truncate);
+    let drift = Drift::new(settings.theta(D));
     let mut since_build = 0u32;
     let mut u_ref: Option<Vec<f64>> = None;
     // Over-relaxation (see OVER_RELAXATION): off for the first iterations after a build, off for
@@ -600,9 +600,9 @@ impl Rebuild {
             &mut st.g0,
             st.eps,
             kernel::LocalLimits {
-                theta: settings.truncate,
+                theta: settings.theta(D),
                 tau: if mid {
-                    settings.truncate * LOCAL_MOVE_MID
+                    settings.theta(D) * LOCAL_MOVE_MID
                 } else {
                     tau
                 },

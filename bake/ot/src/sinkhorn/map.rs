@@ -84,7 +84,7 @@ pub(super) fn finish<const D: usize>(
                 info.completion.widened,
                 info.completion.paths,
                 completion_edges(n),
-                settings.truncate
+                settings.theta(dim)
             ),
             report: Box::new(report),
         });
@@ -284,7 +284,7 @@ fn refine_assignment<const D: usize>(
     let t2 = std::time::Instant::now();
     let (row_ptr, col, red) = (&kern.row_ptr, &kern.col, &kern.k);
     let cost = |i: usize, j: usize| sq(wrap, &x[i], &y[j]) - f[i] - g[j];
-    let certified = CERTIFIED * settings.truncate * eps;
+    let certified = CERTIFIED * settings.theta(D) * eps;
     let graph = Graph {
         row_ptr,
         col,
@@ -302,7 +302,7 @@ fn refine_assignment<const D: usize>(
         x,
         g: &g,
         wrap,
-        margin: settings.truncate * eps,
+        margin: settings.theta(D) * eps,
         max_edges: completion_edges(x.len()),
         bnd: &bnd,
         support: Some(Support {

@@ -277,7 +277,7 @@ fn invalid_settings_are_named() {
         ),
         (
             SinkhornSettings {
-                truncate: 0.5,
+                truncate: Some(0.5),
                 ..Default::default()
             },
             "truncate",
