@@ -589,6 +589,7 @@ impl Rebuild {
         let tk = std::time::Instant::now();
         let rows = hs.levels[st.level].len();
         let limit = pair_limit(rows);
+        let theta = settings.theta(D);
         let local = kernel::rebuild_local(
             hs,
             ht,
@@ -600,12 +601,8 @@ impl Rebuild {
             &mut st.g0,
             st.eps,
             kernel::LocalLimits {
-                theta: settings.theta(D),
-                tau: if mid {
-                    settings.theta(D) * LOCAL_MOVE_MID
-                } else {
-                    tau
-                },
+                theta,
+                tau: if mid { theta * LOCAL_MOVE_MID } else { tau },
                 // Whole once a strict local rebuild could not be local any more: the stage's
                 // end would need that whole build anyway, and it is best done now.
                 tau_whole: tau,
