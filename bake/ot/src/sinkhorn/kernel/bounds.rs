@@ -26,6 +26,8 @@ pub(in crate::sinkhorn) trait Minorant<const D: usize>:
 {
     /// A minorant of `h` over points `y` (any fit is valid; a good one is tight).
     fn fit(y: &[[f64; D]], h: &[f64]) -> Self;
+    /// h ≥ `alpha`, with no slope: valid for any points whose h is at least `alpha`.
+    fn flat(alpha: f64) -> Self;
     /// The lower bound of C(x, y_j) − pot_j over the cell's descendants, for a query x
     /// (x2 = |x|²) and the cell's box `lo`, `hi`.
     fn bound(&self, x: &[f64; D], x2: f64, lo: &[f64; D], hi: &[f64; D]) -> f64;
@@ -43,6 +45,13 @@ impl<const D: usize> Minorant<D> for Affine<D> {
     fn fit(y: &[[f64; D]], h: &[f64]) -> Self {
         let (beta, alpha) = affine_minorant(y, h);
         Affine { beta, alpha }
+    }
+
+    fn flat(alpha: f64) -> Self {
+        Affine {
+            beta: [0.0; D],
+            alpha,
+        }
     }
 
     #[inline]
@@ -81,9 +90,11 @@ impl<const D: usize> Minorant<D> for Quad<D> {
     /// Least squares of h ≈ a + β·(y − m) + Σ q_k (y_k − m_k)² (2D + 1 unknowns), q clamped at 0,
     /// then α = min(h − β·(y − m) − Σ q_k (y_k − m_k)²).
     fn fit(y: &[[f64; D]], h: &[f64]) -> Self {
-        let n = y.len() as f64;
+        let step = fit_step(y.len());
+        let (ys, hs) = (y.iter().step_by(step), h.iter().step_by(step));
+        let n = ys.len() as f64;
         let mut mid = [0.0; D];
-        for p in y {
+        for p in ys.clone() {
             for k in 0..D {
                 mid[k] += p[k];
             }
@@ -96,7 +107,7 @@ impl<const D: usize> Minorant<D> for Quad<D> {
         let mut r = [0.0f64; MAX_FEATURES];
         let mut phi = [0.0f64; MAX_FEATURES];
         phi[0] = 1.0;
-        for (p, &v) in y.iter().zip(h) {
+        for (p, &v) in ys.zip(hs) {
             for k in 0..D {
                 let d = p[k] - mid[k];
                 phi[1 + k] = d;
@@ -138,6 +149,15 @@ impl<const D: usize> Minorant<D> for Quad<D> {
         }
     }
 
+    fn flat(alpha: f64) -> Self {
+        Quad {
+            alpha,
+            beta: [0.0; D],
+            q: [0.0; D],
+            mid: [0.0; D],
+        }
+    }
+
     /// The lower bound of C(x, y_j) − pot_j over a cell's descendants: |x|² + α + Σ_k the minimum
     /// over t_k = y_k − m_k in the box of (β_k − 2x_k) t_k + q_k t_k² − 2x_k m_k (the parabola's
     /// vertex, clamped to the box).
@@ -165,10 +185,33 @@ impl<const D: usize> Minorant<D> for Quad<D> {
     }
 }
 
+/// Points a minorant's least squares reads at most: a larger cell's fit reads every
+/// `fit_step`-th of its descendants (in Morton order, so spread over the whole cell). The fit only
+/// has to be close, since α is then the exact minimum over every point, so the bound stays valid;
+/// the whole fit read every point of every level twice, and a local rebuild's four bounds were
+/// a third of its time once what it searches was small.
+const FIT_POINTS: usize = 256;
+
+fn fit_step(len: usize) -> usize {
+    len.div_ceil(FIT_POINTS).max(1)
+}
+
+/// The most descendants of a cell whose children the searches ([`super::search`]'s bucket) and
+/// the walk ([`super::pattern`]'s leaf) never bound: both evaluate such a cell's points. A larger
+/// value here than theirs only fits more cells; a smaller one would leave cells they bound flat
+/// (valid, looser).
+pub(super) const OPENED: u32 = 64;
+
 /// Most least-squares features of a [`Quad`] fit: 2D + 1 for D ≤ 4.
 const MAX_FEATURES: usize = 9;
 
 /// Every cell's minorant of h = |y|² − `pot` over its descendants on `level`.
+///
+/// The searches and the walk bound a cell only when they open its parent, and they open only
+/// cells of more than [`OPENED`] descendants (smaller ones have their points evaluated): a cell
+/// whose parent is smaller is never bounded, and gets the flat minorant (β = 0, α = min h), valid
+/// if ever read, for one pass over its points instead of a fit. Those are most cells (the levels
+/// just above the points), and their fits were half of every `bounds`.
 pub(in crate::sinkhorn) fn bounds<const D: usize, M: Minorant<D>>(
     h: &Hierarchy<D>,
     level: usize,
@@ -180,36 +223,52 @@ pub(in crate::sinkhorn) fn bounds<const D: usize, M: Minorant<D>>(
         .zip(pot)
         .map(|(y, p)| y.iter().map(|v| v * v).sum::<f64>() - p)
         .collect();
-    let mut cells: Vec<Vec<M>> = (0..level).map(|_| Vec::new()).collect();
-    // Descendant ranges (into the search level) of every cell, filled from the level above the
-    // search level up.
+    // Descendant ranges (into the search level) of every cell, from the level above the search
+    // level up.
     let mut desc: Vec<Vec<(u32, u32)>> = vec![Vec::new(); level];
     for l in (0..level).rev() {
         let child = &h.levels[l].child;
-        let m = h.levels[l].len();
         let below = desc.get(l + 1).filter(|_| l + 1 < level);
-        let ranges: Vec<(u32, u32)> = (0..m)
+        desc[l] = (0..h.levels[l].len())
             .map(|c| match below {
                 None => (child[c], child[c + 1]),
                 Some(b) => (b[child[c] as usize].0, b[child[c + 1] as usize - 1].1),
             })
             .collect();
-        cells[l] = ranges
-            .par_iter()
-            .map(|&(a, b)| M::fit(&pos[a as usize..b as usize], &hv[a as usize..b as usize]))
-            .collect();
-        desc[l] = ranges;
     }
+    let cells: Vec<Vec<M>> = (0..level)
+        .map(|l| {
+            let parent = &h.levels[l].parent;
+            desc[l]
+                .par_iter()
+                .enumerate()
+                .map(|(c, &(a, b))| {
+                    let (y, hc) = (&pos[a as usize..b as usize], &hv[a as usize..b as usize]);
+                    let opened = l == 0 || {
+                        let (pa, pb) = desc[l - 1][parent[c] as usize];
+                        pb - pa > OPENED
+                    };
+                    if opened {
+                        M::fit(y, hc)
+                    } else {
+                        M::flat(hc.iter().copied().fold(f64::INFINITY, f64::min))
+                    }
+                })
+                .collect()
+        })
+        .collect();
     Bounds { cells, desc }
 }
 
-/// Least-squares slope β of h over points y (0 where the points span no direction) and
-/// α = min(h − β·y).
+/// Least-squares slope β of h over points y (0 where the points span no direction; fitted to
+/// every [`fit_step`]-th point of a large cell) and α = min(h − β·y) over all of them.
 pub(super) fn affine_minorant<const D: usize>(y: &[[f64; D]], h: &[f64]) -> ([f64; D], f64) {
-    let n = y.len() as f64;
+    let step = fit_step(y.len());
+    let (ys, hs) = (y.iter().step_by(step), h.iter().step_by(step));
+    let n = ys.len() as f64;
     let mut my = [0.0; D];
     let mut mh = 0.0;
-    for (p, &v) in y.iter().zip(h) {
+    for (p, &v) in ys.clone().zip(hs.clone()) {
         for k in 0..D {
             my[k] += p[k];
         }
@@ -220,7 +279,7 @@ pub(super) fn affine_minorant<const D: usize>(y: &[[f64; D]], h: &[f64]) -> ([f6
     // Normal equations A β = r, A = Σ (y−ȳ)(y−ȳ)ᵀ, r = Σ (y−ȳ)(h−h̄).
     let mut a = [[0.0; D]; D];
     let mut r = [0.0; D];
-    for (p, &v) in y.iter().zip(h) {
+    for (p, &v) in ys.zip(hs) {
         let d: [f64; D] = std::array::from_fn(|k| p[k] - my[k]);
         for i in 0..D {
             r[i] += d[i] * (v - mh);

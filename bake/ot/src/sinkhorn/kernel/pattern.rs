@@ -53,6 +53,9 @@ const HEADROOM: f64 = 0.125;
 /// 16; 128 as 64, 256 slower; D158).
 const LEAF: u32 = 64;
 
+// Every cell the walk bounds has a fitted minorant ([`super::bounds::OPENED`]).
+const _: () = assert!(LEAF >= super::bounds::OPENED);
+
 /// Rows per task at most (a task is one source cell walked against the whole target; a cell just
 /// above the points is one task whatever its size).
 const TASK_ROWS: u32 = 1024;

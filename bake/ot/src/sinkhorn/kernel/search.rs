@@ -19,6 +19,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// stage's local rebuilds a few percent faster; 128 the same, 256 slower; D151, D156).
 const BUCKET_ONE: u32 = 64;
 
+// Every cell a search bounds has a fitted minorant ([`super::bounds::OPENED`]).
+const _: () = assert!(BUCKET_ONE >= super::bounds::OPENED);
+
 #[allow(clippy::too_many_arguments)]
 /// All cells j of `h` at `level` with C(x, y_j) − pot_j ≤ min + `margin`, appended to `out` as
 /// (j, C − pot_j) in search order; returns the minimum. With `fixed = Some(t)` the threshold is `t`

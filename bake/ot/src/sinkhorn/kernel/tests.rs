@@ -621,7 +621,8 @@ fn pair_bound_is_below_every_pair_and_exact_for_points() {
 
 /// Both minorants bound C(x, y_j) − pot_j from below over a cell, for queries inside and far
 /// outside it, and on a convex h (what |y|² less a c-concave potential is) the quadratic one is
-/// much tighter: what its fit is for.
+/// much tighter: what its fit is for. The flat minorants of the cells no search bounds are below
+/// too, and the fits here read a subsample (300 points, every second one).
 #[test]
 fn quadratic_minorant_bounds_below_and_tighter() {
     use bounds::{Affine, Minorant, Quad};
@@ -658,6 +659,16 @@ fn quadratic_minorant_bounds_below_and_tighter() {
         }
     }
     let (aff, quad) = (Affine::fit(&ys, &h), Quad::fit(&ys, &h));
+    // The minorants of cells no search bounds (`bounds::OPENED`): valid, and looser.
+    let low = h.iter().copied().fold(f64::INFINITY, f64::min);
+    let (flat_a, flat_q) = (Affine::flat(low), Quad::flat(low));
+    // At the origin C − pot is h itself: a flat minorant is exact there.
+    for b in [
+        flat_a.bound(&[0.0; 3], 0.0, &lo, &hi),
+        flat_q.bound(&[0.0; 3], 0.0, &lo, &hi),
+    ] {
+        assert!(b <= low && b > low - 1e-12, "{b} against {low}");
+    }
     let (mut slack_a, mut slack_q) = (0.0, 0.0);
     for i in 0..4000 {
         let t = i as f64 + 0.25;
@@ -676,6 +687,14 @@ fn quadratic_minorant_bounds_below_and_tighter() {
         assert!(
             a <= truth && q <= truth,
             "query {i}: {a} / {q} above {truth}"
+        );
+        let (fa, fq) = (
+            flat_a.bound(&x, x2, &lo, &hi),
+            flat_q.bound(&x, x2, &lo, &hi),
+        );
+        assert!(
+            fa <= truth && fq <= truth,
+            "query {i}: flat {fa} / {fq} above {truth}"
         );
         // The slack that matters is near the cell: far from it both bounds prune at once.
         if (0..3).all(|k| x[k] > lo[k] - 0.1 && x[k] < hi[k] + 0.1) {
