@@ -188,8 +188,7 @@ impl<const D: usize> Minorant<D> for Quad<D> {
 /// Points a minorant's least squares reads at most: a larger cell's fit reads every
 /// `fit_step`-th of its descendants (in Morton order, so spread over the whole cell). The fit only
 /// has to be close, since α is then the exact minimum over every point, so the bound stays valid;
-/// the whole fit read every point of every level twice, and a local rebuild's four bounds were
-/// a third of its time once what it searches was small.
+/// the whole fit read every point of a large cell two or three times on every level.
 const FIT_POINTS: usize = 256;
 
 fn fit_step(len: usize) -> usize {
