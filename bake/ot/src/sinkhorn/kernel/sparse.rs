@@ -203,20 +203,40 @@ pub(super) fn union<'a>(
 /// The value [`merge_lists_in_place`] gives the entries it adds.
 pub(super) const NEW_VALUE: f32 = f32::NAN;
 
+/// Parts a merge runs in, in parallel (see [`merge_lists_in_place`]). Each part but the first
+/// copies aside its old entries that the part before it overwrites (for two parts about half of
+/// what the merge adds), so more parts cost more memory for a pass that waits on memory anyway.
+const MERGE_PARTS: usize = 2;
+
 /// Merges into every list of (`ptr`, `idx`) the sorted entries `new(i)`, in place: list i becomes
 /// the sorted union of its entries and `new(i)`. With `vals` (one value per entry), every old entry
 /// keeps its value and every new one gets [`NEW_VALUE`]. The lists' new lengths are counted first
 /// (in parallel); the array then grows once, by exactly what the lists gain (a large allocation
 /// grows by remapping its pages, without a copy), and the lists are merged from the last to the
 /// first, each from its end, so that no entry is overwritten before it is read: a list only moves
-/// towards the end, and a list ends, after the merge, no earlier than it did before. Sequential:
-/// one pass over the entries from the first list that gains any, runs of lists that gain nothing
-/// moved as one block.
+/// towards the end, and a list ends, after the merge, no earlier than it did before. One pass over
+/// the entries from the first list that gains any, runs of lists that gain nothing moved as one
+/// block, in [`MERGE_PARTS`] runs of lists at once: each part writes only where its own lists
+/// end up, and reads its old entries there or, below that, from a copy taken first (the part
+/// before it writes over them). The result is the unions whatever the parts.
 pub(super) fn merge_lists_in_place<'a, I>(
+    ptr: &mut Vec<usize>,
+    idx: &mut Vec<u32>,
+    vals: Option<&mut Vec<f32>>,
+    new: impl Fn(usize) -> I + Sync,
+) where
+    I: DoubleEndedIterator<Item = u32> + 'a,
+{
+    merge_lists_in_parts(ptr, idx, vals, new, MERGE_PARTS);
+}
+
+/// [`merge_lists_in_place`] in up to `parts` parts.
+pub(super) fn merge_lists_in_parts<'a, I>(
     ptr: &mut Vec<usize>,
     idx: &mut Vec<u32>,
     mut vals: Option<&mut Vec<f32>>,
     new: impl Fn(usize) -> I + Sync,
+    parts: usize,
 ) where
     I: DoubleEndedIterator<Item = u32> + 'a,
 {
@@ -240,62 +260,163 @@ pub(super) fn merge_lists_in_place<'a, I>(
         v.resize(total, NEW_VALUE);
     }
     let first = (0..m).find(|&i| new_ptr[i + 1] != ptr[i + 1]).unwrap_or(m);
-    // A list whose length is unchanged is unchanged (the union holds the old entries), and a run of
-    // such lists moves by one offset: one `copy_within` for the run. Most lists gain nothing in a
-    // local rebuild, and moving them entry by entry was most of the merge.
-    let same = |i: usize| new_ptr[i + 1] - new_ptr[i] == ptr[i + 1] - ptr[i];
-    let mut end = m;
-    while end > first {
-        let i = end - 1;
-        if same(i) {
-            let mut a = i;
-            while a > first && same(a - 1) {
-                a -= 1;
-            }
-            idx.copy_within(ptr[a]..ptr[end], new_ptr[a]);
-            if let Some(v) = vals.as_deref_mut() {
-                v.copy_within(ptr[a]..ptr[end], new_ptr[a]);
-            }
-            end = a;
-            continue;
+    // Parts: runs of lists splitting what is written (from the first list that gains) about
+    // evenly.
+    let from = new_ptr[first];
+    let mut cuts = vec![first];
+    for p in 1..parts.max(1) {
+        let at = new_ptr.partition_point(|&q| q < from + (total - from) * p / parts);
+        if at > *cuts.last().unwrap() && at < m {
+            cuts.push(at);
         }
-        end = i;
-        let (lo, mut r) = (ptr[i], ptr[i + 1]);
-        let mut w = new_ptr[i + 1];
-        let mut add = new(i).rev().peekable();
-        loop {
-            let old = (r > lo).then(|| idx[r - 1]);
-            // The entry, and where its value comes from (an old entry's own, or none).
-            let (e, from) = match (old, add.peek().copied()) {
-                (Some(a), Some(b)) => {
-                    let from = (a >= b).then_some(r - 1);
-                    if a >= b {
-                        r -= 1;
-                    }
-                    if b >= a {
-                        add.next();
-                    }
-                    (a.max(b), from)
-                }
-                (Some(a), None) => {
-                    r -= 1;
-                    (a, Some(r))
-                }
-                (None, Some(b)) => {
-                    add.next();
-                    (b, None)
-                }
-                (None, None) => break,
-            };
-            w -= 1;
-            idx[w] = e;
-            if let Some(v) = vals.as_deref_mut() {
-                v[w] = from.map_or(NEW_VALUE, |k| v[k]);
-            }
-        }
-        debug_assert_eq!(w, new_ptr[i], "list {i}: lens[{i}] is not its union's size");
     }
-    *ptr = new_ptr;
+    cuts.push(m);
+    let (old, new_ptr) = (&*ptr, &new_ptr);
+    // Each part's old entries below where its lists start, copied aside before any part writes
+    // (the parts before it write there), then its destination, a disjoint slice.
+    let heads: Vec<(usize, Vec<u32>, Vec<f32>)> = cuts
+        .windows(2)
+        .map(|w| {
+            let (a, b) = (old[w[0]], old[w[1]].min(new_ptr[w[0]]));
+            let v = vals.as_deref().map_or(Vec::new(), |v| v[a..b].to_vec());
+            (a, idx[a..b].to_vec(), v)
+        })
+        .collect();
+    let mut work = Vec::with_capacity(heads.len());
+    let (mut rest_i, mut rest_v) = (&mut idx[from..], vals.map(|v| &mut v[from..]));
+    for (w, (head_at, head_idx, head_vals)) in cuts.windows(2).zip(heads) {
+        let len = new_ptr[w[1]] - new_ptr[w[0]];
+        let (di, ri) = std::mem::take(&mut rest_i).split_at_mut(len);
+        rest_i = ri;
+        let dv = rest_v.take().map(|v| {
+            let (d, r) = v.split_at_mut(len);
+            rest_v = Some(r);
+            d
+        });
+        work.push(Part {
+            lists: (w[0], w[1]),
+            base: new_ptr[w[0]],
+            idx: di,
+            vals: dv,
+            head_at,
+            head_idx,
+            head_vals,
+        });
+    }
+    work.into_par_iter()
+        .for_each(|mut part| part.merge(old, new_ptr, &new));
+    *ptr = new_ptr.clone();
+}
+
+/// One part of [`merge_lists_in_parts`]: its lists, where their new entries go, and its old
+/// entries that lie below that (`head_*`, from `head_at` on).
+struct Part<'s> {
+    lists: (usize, usize),
+    base: usize,
+    idx: &'s mut [u32],
+    vals: Option<&'s mut [f32]>,
+    head_at: usize,
+    head_idx: Vec<u32>,
+    head_vals: Vec<f32>,
+}
+
+impl Part<'_> {
+    /// The old entry at `k`.
+    fn old(&self, k: usize) -> u32 {
+        if k < self.base {
+            self.head_idx[k - self.head_at]
+        } else {
+            self.idx[k - self.base]
+        }
+    }
+
+    fn old_val(&self, k: usize) -> f32 {
+        match &self.vals {
+            Some(_) if k < self.base => self.head_vals[k - self.head_at],
+            Some(v) => v[k - self.base],
+            None => NEW_VALUE,
+        }
+    }
+
+    /// Moves the old entries `a..b` to start at `to` (≥ `a`, ≥ `base`): what lies in the slice
+    /// first (the higher addresses), then what lies in the head.
+    fn move_run(&mut self, (a, b): (usize, usize), to: usize) {
+        let mid = a.max(self.base).min(b);
+        // A run wholly below `base` (in the head) has no part in the slice.
+        if mid < b {
+            let (s, d) = (mid - self.base..b - self.base, to + (mid - a) - self.base);
+            self.idx.copy_within(s.clone(), d);
+            if let Some(v) = self.vals.as_deref_mut() {
+                v.copy_within(s, d);
+            }
+        }
+        if a < mid {
+            let (h, d) = (a - self.head_at..mid - self.head_at, to - self.base);
+            self.idx[d..d + h.len()].copy_from_slice(&self.head_idx[h.clone()]);
+            if let Some(v) = self.vals.as_deref_mut() {
+                v[d..d + h.len()].copy_from_slice(&self.head_vals[h]);
+            }
+        }
+    }
+
+    fn merge<'a, I>(&mut self, ptr: &[usize], new_ptr: &[usize], new: &(impl Fn(usize) -> I + Sync))
+    where
+        I: DoubleEndedIterator<Item = u32> + 'a,
+    {
+        let (first, mut end) = self.lists;
+        // A list whose length is unchanged is unchanged (the union holds the old entries), and a
+        // run of such lists moves by one offset: one copy for the run. Most lists gain nothing in
+        // a local rebuild, and moving them entry by entry was most of the merge.
+        let same = |i: usize| new_ptr[i + 1] - new_ptr[i] == ptr[i + 1] - ptr[i];
+        while end > first {
+            let i = end - 1;
+            if same(i) {
+                let mut a = i;
+                while a > first && same(a - 1) {
+                    a -= 1;
+                }
+                self.move_run((ptr[a], ptr[end]), new_ptr[a]);
+                end = a;
+                continue;
+            }
+            end = i;
+            let (lo, mut r) = (ptr[i], ptr[i + 1]);
+            let mut w = new_ptr[i + 1];
+            let mut add = new(i).rev().peekable();
+            loop {
+                let old = (r > lo).then(|| self.old(r - 1));
+                // The entry, and where its value comes from (an old entry's own, or none).
+                let (e, from) = match (old, add.peek().copied()) {
+                    (Some(a), Some(b)) => {
+                        let from = (a >= b).then_some(r - 1);
+                        if a >= b {
+                            r -= 1;
+                        }
+                        if b >= a {
+                            add.next();
+                        }
+                        (a.max(b), from)
+                    }
+                    (Some(a), None) => {
+                        r -= 1;
+                        (a, Some(r))
+                    }
+                    (None, Some(b)) => {
+                        add.next();
+                        (b, None)
+                    }
+                    (None, None) => break,
+                };
+                w -= 1;
+                let value = from.map_or(NEW_VALUE, |k| self.old_val(k));
+                self.idx[w - self.base] = e;
+                if let Some(v) = self.vals.as_deref_mut() {
+                    v[w - self.base] = value;
+                }
+            }
+            debug_assert_eq!(w, new_ptr[i], "list {i}: lens[{i}] is not its union's size");
+        }
+    }
 }
 
 /// Column blocks of a transpose, filled in parallel: each block owns a contiguous range of the

@@ -425,28 +425,57 @@ fn lists_merge_in_place_into_their_unions() {
     // With values (an entry's value is a function of its list and entry): the old entries keep
     // theirs, the new ones get `NEW_VALUE`.
     let val = |i: usize, j: u32| (i * 1000) as f32 + j as f32;
-    let (mut ptr2, mut idx2) = (ptr.clone(), idx.clone());
-    let mut vals: Vec<f32> = (0..m)
+    let vals0: Vec<f32> = (0..m)
         .flat_map(|i| lists[i].iter().map(move |&j| val(i, j)))
         .collect();
-    sparse::merge_lists_in_place(&mut ptr, &mut idx, None, |i| adds[i].iter().copied());
-    assert_eq!(idx.len(), total);
-    for i in 0..m {
-        assert_eq!(&idx[ptr[i]..ptr[i + 1]], &want[i][..], "list {i}");
-    }
-    sparse::merge_lists_in_place(&mut ptr2, &mut idx2, Some(&mut vals), |i| {
-        adds[i].iter().copied()
-    });
-    assert_eq!((&ptr2, &idx2, vals.len()), (&ptr, &idx, total));
-    for i in 0..m {
-        for p in ptr[i]..ptr[i + 1] {
-            let j = idx[p];
-            if lists[i].contains(&j) {
-                assert_eq!(vals[p], val(i, j), "list {i} entry {j} keeps its value");
-            } else {
-                assert!(vals[p].is_nan(), "list {i} entry {j} is new");
+    // In one part and in several (each but the first reading its old entries below where its
+    // lists start from a copy): the same unions.
+    for parts in [1, 2, 3, 5, 8, 64] {
+        let (mut ptr1, mut idx1) = (ptr.clone(), idx.clone());
+        sparse::merge_lists_in_parts(
+            &mut ptr1,
+            &mut idx1,
+            None,
+            |i| adds[i].iter().copied(),
+            parts,
+        );
+        assert_eq!(idx1.len(), total);
+        for i in 0..m {
+            assert_eq!(
+                &idx1[ptr1[i]..ptr1[i + 1]],
+                &want[i][..],
+                "{parts} parts, list {i}"
+            );
+        }
+        let (mut ptr2, mut idx2, mut vals) = (ptr.clone(), idx.clone(), vals0.clone());
+        sparse::merge_lists_in_parts(
+            &mut ptr2,
+            &mut idx2,
+            Some(&mut vals),
+            |i| adds[i].iter().copied(),
+            parts,
+        );
+        assert_eq!((&ptr2, &idx2, vals.len()), (&ptr1, &idx1, total));
+        for i in 0..m {
+            for p in ptr1[i]..ptr1[i + 1] {
+                let j = idx1[p];
+                if lists[i].contains(&j) {
+                    assert_eq!(
+                        vals[p],
+                        val(i, j),
+                        "{parts} parts: list {i} entry {j} keeps its value"
+                    );
+                } else {
+                    assert!(vals[p].is_nan(), "{parts} parts: list {i} entry {j} is new");
+                }
             }
         }
+    }
+    // The default entry point is one of them.
+    let (mut ptr3, mut idx3) = (ptr.clone(), idx.clone());
+    sparse::merge_lists_in_place(&mut ptr3, &mut idx3, None, |i| adds[i].iter().copied());
+    for i in 0..m {
+        assert_eq!(&idx3[ptr3[i]..ptr3[i + 1]], &want[i][..], "list {i}");
     }
 }
 
