@@ -171,45 +171,53 @@ impl<const D: usize> Hierarchy<D> {
     ) -> Self {
         let n = points.len();
         let keyed = sorted.0;
-        let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
-        let sorted: Vec<[f64; D]> = order.iter().map(|&i| points[i as usize]).collect();
+        let order: Vec<u32> = keyed.par_iter().map(|&(_, i)| i).collect();
+        let sorted: Vec<[f64; D]> = order.par_iter().map(|&i| points[i as usize]).collect();
 
-        // Cell starts (indices into the sorted points) of every cell level.
+        // Cell starts (indices into the sorted points) of every cell level, the levels at once.
         let b = bits(D);
-        let mut starts: Vec<Vec<u32>> = Vec::new();
-        for level in 0..=max_level {
-            let shift = D as u32 * (b - level);
-            let prefix = |k: usize| {
-                if shift >= 64 {
-                    0
-                } else {
-                    keyed[k].0 >> shift
-                }
-            };
-            let mut s = vec![0u32];
-            for k in 1..n {
-                if prefix(k) != prefix(k - 1) {
-                    s.push(k as u32);
-                }
-            }
-            starts.push(s);
-        }
+        let starts: Vec<Vec<u32>> = (0..=max_level)
+            .into_par_iter()
+            .map(|level| {
+                let shift = D as u32 * (b - level);
+                let prefix = |k: usize| {
+                    if shift >= 64 {
+                        0
+                    } else {
+                        keyed[k].0 >> shift
+                    }
+                };
+                let mut s = vec![0u32];
+                s.extend(
+                    (1..n)
+                        .filter(|&k| prefix(k) != prefix(k - 1))
+                        .map(|k| k as u32),
+                );
+                s
+            })
+            .collect();
 
-        let mut levels: Vec<Level<D>> = Vec::with_capacity(starts.len() + 1);
-        for (level, s) in starts.iter().enumerate() {
-            let side = grid.side / (1u64 << level) as f64;
-            let mut lvl = cell_level(&sorted, s, n, side);
-            // Children: the next level's cells starting inside this cell's range (nested ranges).
-            let next: Vec<u32> = match starts.get(level + 1) {
-                Some(ns) => ns.clone(),
-                None => (0..n as u32).collect(),
-            };
-            lvl.child = child_ranges(s, &next, n);
-            levels.push(lvl);
-        }
+        let mut levels: Vec<Level<D>> = starts
+            .par_iter()
+            .enumerate()
+            .map(|(level, s)| {
+                let side = grid.side / (1u64 << level) as f64;
+                let mut lvl = cell_level(&sorted, s, n, side);
+                // Children: the next level's cells starting inside this cell's range (nested
+                // ranges); the last cell level's children are its points.
+                lvl.child = match starts.get(level + 1) {
+                    Some(next) => child_ranges(s, next, n),
+                    None => s.iter().copied().chain([n as u32]).collect(),
+                };
+                lvl
+            })
+            .collect();
         // Parents from the children ranges.
-        for l in 1..levels.len() {
-            let parent = parents_of(&levels[l - 1].child, levels[l].len());
+        let parents: Vec<Vec<u32>> = (1..levels.len())
+            .into_par_iter()
+            .map(|l| parents_of(&levels[l - 1].child, levels[l].len()))
+            .collect();
+        for (l, parent) in (1..levels.len()).zip(parents) {
             levels[l].parent = parent;
         }
         let finest_side = levels.last().map_or(grid.side, |l| l.side);
@@ -296,14 +304,27 @@ fn child_ranges(starts: &[u32], next: &[u32], n: usize) -> Vec<u32> {
     child
 }
 
-/// Inverts child ranges into a parent index per child.
+/// Inverts child ranges into a parent index per child, in parallel over fixed blocks of children
+/// (each block finds its first parent by bisection, then walks the ranges).
 fn parents_of(child: &[u32], len: usize) -> Vec<u32> {
+    const BLOCK: usize = 1 << 14;
     let mut parent = vec![0u32; len];
-    for c in 0..child.len() - 1 {
-        for p in &mut parent[child[c] as usize..child[c + 1] as usize] {
-            *p = c as u32;
-        }
-    }
+    parent
+        .par_chunks_mut(BLOCK)
+        .enumerate()
+        .for_each(|(b, out)| {
+            let first = b * BLOCK;
+            // The cell whose range holds `first`: the last c with child[c] <= first.
+            let mut c = child
+                .partition_point(|&s| s as usize <= first)
+                .saturating_sub(1);
+            for (k, p) in out.iter_mut().enumerate() {
+                while c + 2 < child.len() && child[c + 1] as usize <= first + k {
+                    c += 1;
+                }
+                *p = c as u32;
+            }
+        });
     parent
 }
 
@@ -384,6 +405,25 @@ mod tests {
         assert_eq!(interleave(&top2), interleave_bits(&top2));
         let top3 = [(1u64 << bits(3)) - 1; 3];
         assert_eq!(interleave(&top3), interleave_bits(&top3));
+    }
+
+    /// The parents found block by block are those of the ranges, over many blocks and ranges of
+    /// every length from 1 (a range cut by a block's edge included).
+    #[test]
+    fn parents_invert_child_ranges_across_blocks() {
+        let mut rng = crate::rng::SplitMix64::new(7);
+        let mut child = vec![0u32];
+        while (*child.last().unwrap() as usize) < 100_000 {
+            let len = 1 + (rng.next_u64() % 40) as u32;
+            child.push(child.last().unwrap() + len);
+        }
+        let len = *child.last().unwrap() as usize;
+        let parent = parents_of(&child, len);
+        for c in 0..child.len() - 1 {
+            for p in &parent[child[c] as usize..child[c + 1] as usize] {
+                assert_eq!(*p as usize, c);
+            }
+        }
     }
 
     #[test]

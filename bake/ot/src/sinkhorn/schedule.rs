@@ -32,8 +32,13 @@ impl<const D: usize> Plan<D> {
     ) -> Self {
         let side = grid.side;
         let t0 = std::time::Instant::now();
-        let (sx, sy) = (Sorted::new(xs, grid), Sorted::new(ys, grid));
-        let (cs, ct) = (level_counts::<D>(&sx), level_counts::<D>(&sy));
+        // The two clouds at once: each sort and count is parallel, but not all of it is.
+        let counted = |pts: &[[f64; D]]| {
+            let s = Sorted::new(pts, grid);
+            let c = level_counts::<D>(&s);
+            (s, c)
+        };
+        let ((sx, cs), (sy, ct)) = rayon::join(|| counted(xs), || counted(ys));
         let spacing = point_spacing(&cs, &ct, side, n, D);
         let blur_end = settings.blur.unwrap_or(
             settings
@@ -57,8 +62,10 @@ impl<const D: usize> Plan<D> {
                 show(&ct)
             );
         }
-        let hs = Hierarchy::from_sorted(xs, sx, grid, max_level);
-        let ht = Hierarchy::from_sorted(ys, sy, grid, max_level);
+        let (hs, ht) = rayon::join(
+            || Hierarchy::from_sorted(xs, sx, grid, max_level),
+            || Hierarchy::from_sorted(ys, sy, grid, max_level),
+        );
         if std::env::var_os("OTBAKE_TRACE").is_some() {
             eprintln!("  plan {:.2}s", t0.elapsed().as_secs_f64());
         }
