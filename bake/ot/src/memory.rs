@@ -49,21 +49,31 @@ const SINKHORN_FIXED: u64 = 2 << 20;
 /// density points see, D130; D142).
 const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [64.0, 80.0, 100.0, 224.0];
 
-/// Keeps the C allocator's threshold for serving a block by its own mapping at its initial
-/// 128 KiB, for the whole process, so that what a solve frees goes back to the system.
+/// Blocks from this size up get their own mapping ([`keep_large_blocks_mapped`]): glibc's own
+/// largest dynamic threshold, fixed from the start. Measured against D147's 128 KiB (D173,
+/// alternating runs): 250K duck 2.83 → 2.60 s wall (medians of 6), system time 0.57 → 0.29 s,
+/// peak 185 → 195 MB; 1M cow 22.2 / 21.0 → 21.2 / 19.0 s, system 3.0 → 1.3 s, 0.90 → 0.96 GB.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+const MMAP_THRESHOLD: i32 = 32 << 20;
+
+/// Fixes the C allocator's threshold for serving a block by its own mapping at 32 MiB
+/// for the whole process, so that what a solve frees goes back to the system.
 ///
-/// glibc raises that threshold each time a mapped block is freed, up to 32 MiB; from then on the
-/// solvers' transient arrays of a few MiB (per-chunk search lists, row pointers, potentials) come
-/// from the heap, whose freed memory stays resident. Measured peak resident memory (D147): 250K 3D
-/// cow 358 → 248 MB, 250K 2D duck 345 → 284 MB, 1M cow 1.33 → 1.03 GB, for 0–5% more user time
-/// (mapping and unmapping; measured on a shared machine). A library does not change its
-/// host's allocator on its own: the binaries call this once at start; the estimates above hold
-/// either way. Returns whether it applied (glibc on Linux only).
+/// Left to itself, glibc raises that threshold each time a mapped block is freed (up to 32 MiB)
+/// and its heap's trim threshold with it, so freed heap memory stays resident: the 1M cow peaked
+/// at 1.33 GB (D147). A threshold set once is never raised, and the heap's top is trimmed at the
+/// default 128 KiB. D147 fixed it at 128 KiB, which mapped, faulted in and unmapped every array
+/// above it (a potential at 250K points is 2 MB) each time a stage allocated it: a fifth of the
+/// 250K duck's CPU time was the system's (D173). At 32 MiB the arrays a stage makes anew come
+/// from the heap, and the kernel's arrays and every per-point array from 4M points up are still
+/// mapped. A library does not change its host's allocator on its own: the binaries call this
+/// once at start; the estimates above hold either way. Returns whether it applied (glibc on
+/// Linux only).
 pub fn keep_large_blocks_mapped() -> bool {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
         // SAFETY: `mallopt` only sets an allocator parameter; any value is accepted or refused.
-        unsafe { libc::mallopt(libc::M_MMAP_THRESHOLD, 128 * 1024) == 1 }
+        unsafe { libc::mallopt(libc::M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1 }
     }
     #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
     {
