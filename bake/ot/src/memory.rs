@@ -50,9 +50,9 @@ const SINKHORN_FIXED: u64 = 2 << 20;
 const SINKHORN_PAIRS_PER_POINT: [f64; 4] = [64.0, 80.0, 100.0, 224.0];
 
 /// Blocks from this size up get their own mapping ([`keep_large_blocks_mapped`]): glibc's own
-/// largest dynamic threshold, fixed from the start. Measured against D147's 128 KiB (D173,
-/// alternating runs): 250K duck 2.83 → 2.60 s wall (medians of 6), system time 0.57 → 0.29 s,
-/// peak 185 → 195 MB; 1M cow 22.2 / 21.0 → 21.2 / 19.0 s, system 3.0 → 1.3 s, 0.90 → 0.96 GB.
+/// largest dynamic threshold, fixed from the start. Lower, the arrays a stage makes anew are
+/// mapped and faulted in each time (at D147's 128 KiB, a fifth of the 250K duck's CPU time was the
+/// system's); higher, a freed kernel array could stay resident in the heap (D173).
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 const MMAP_THRESHOLD: i32 = 32 << 20;
 
