@@ -271,7 +271,7 @@ pub(super) fn merge_lists_in_parts<'a, I>(
         }
     }
     cuts.push(m);
-    let (old, new_ptr) = (&*ptr, &new_ptr);
+    let old = &*ptr;
     // Each part's old entries below where its lists start, copied aside before any part writes
     // (the parts before it write there), then its destination, a disjoint slice.
     let heads: Vec<(usize, Vec<u32>, Vec<f32>)> = cuts
@@ -304,8 +304,8 @@ pub(super) fn merge_lists_in_parts<'a, I>(
         });
     }
     work.into_par_iter()
-        .for_each(|mut part| part.merge(old, new_ptr, &new));
-    *ptr = new_ptr.clone();
+        .for_each(|mut part| part.merge(old, &new_ptr, &new));
+    *ptr = new_ptr;
 }
 
 /// One part of [`merge_lists_in_parts`]: its lists, where their new entries go, and its old
