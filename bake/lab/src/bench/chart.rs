@@ -34,9 +34,16 @@ fn solver_color(solver: &str) -> plotters::style::RGBColor {
     }
 }
 
-/// Chart size in pixels per panel, and of the legend strip.
+/// Chart size in pixels per panel.
 const PANEL: (u32, u32) = (520, 380);
-const LEGEND_HEIGHT: u32 = 44;
+
+/// The legend strip: the height of one line of entries, the margin at its left and right ends,
+/// the width of a solver's entry and of a size's, and the gap between the two kinds.
+const LEGEND_LINE: u32 = 44;
+const LEGEND_MARGIN: i32 = 16;
+const SOLVER_ENTRY: i32 = 120;
+const SIZE_ENTRY: i32 = 110;
+const SIZE_GAP: i32 = 20;
 
 /// A drawing area of the chart's bitmap.
 type Area<'a> =
@@ -77,20 +84,19 @@ pub fn chart_png(rows: &[Row]) -> Result<Vec<u8>, BenchError> {
         _ => 3,
     };
     let panel_rows = cases.len().div_ceil(cols).max(1);
-    let (w, h) = (
-        PANEL.0 * cols as u32,
-        PANEL.1 * panel_rows as u32 + LEGEND_HEIGHT,
-    );
+    let w = PANEL.0 * cols as u32;
+    let (places, legend_height) = legend_layout(solvers.len(), ns.len(), w);
+    let h = PANEL.1 * panel_rows as u32 + legend_height;
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| chart_err(&e))?;
-        let (grid, legend) = root.split_vertically(h - LEGEND_HEIGHT);
+        let (grid, legend) = root.split_vertically(h - legend_height);
         let panels = grid.split_evenly((panel_rows, cols));
         for (case, area) in cases.iter().zip(panels.iter()) {
             draw_panel(area, rows, case, &ns, &solvers)?;
         }
-        draw_legend(&legend, &ns, &solvers)?;
+        draw_legend(&legend, &places, &ns, &solvers)?;
         root.present().map_err(|e| chart_err(&e))?;
     }
     let mut png = Vec::new();
@@ -196,17 +202,42 @@ fn draw_panel(
     Ok(())
 }
 
-/// The legend strip: solver colors, then n markers.
+/// Where each legend entry goes, in its strip: the solvers' entries, then the sizes' (after a
+/// gap), each as the (x, y) of its middle-left point, wrapped onto a new line where the next entry
+/// would pass the chart's right edge (a single panel is narrower than seven tools' names); and the
+/// strip's height.
+pub(super) fn legend_layout(solvers: usize, sizes: usize, width: u32) -> (Vec<(i32, i32)>, u32) {
+    let right = (width as i32 - LEGEND_MARGIN).max(LEGEND_MARGIN + SOLVER_ENTRY);
+    let (mut x, mut line) = (LEGEND_MARGIN, 0i32);
+    let mut places = Vec::with_capacity(solvers + sizes);
+    let entries = (0..solvers)
+        .map(|_| (0, SOLVER_ENTRY))
+        .chain((0..sizes).map(|k| {
+            let gap = if k == 0 && solvers > 0 { SIZE_GAP } else { 0 };
+            (gap, SIZE_ENTRY)
+        }));
+    for (gap, entry) in entries {
+        x += gap;
+        if x > LEGEND_MARGIN && x + entry > right {
+            (x, line) = (LEGEND_MARGIN, line + 1);
+        }
+        places.push((x, line * LEGEND_LINE as i32 + LEGEND_LINE as i32 / 2));
+        x += entry;
+    }
+    (places, (line as u32 + 1) * LEGEND_LINE)
+}
+
+/// The legend strip: solver colors, then n markers, at the places [`legend_layout`] gave.
 fn draw_legend(
     legend: &Area<'_>,
+    places: &[(i32, i32)],
     ns: &[usize],
     solvers: &[&'static str],
 ) -> Result<(), BenchError> {
     use plotters::prelude::*;
     let font = (FONT_FAMILY, 15).into_font();
-    let y = (LEGEND_HEIGHT / 2) as i32;
-    let mut x = 16i32;
-    for &solver in solvers {
+    let (solver_places, size_places) = places.split_at(solvers.len());
+    for (&solver, &(x, y)) in solvers.iter().zip(solver_places) {
         let color = solver_color(solver);
         legend
             .draw(&Rectangle::new(
@@ -217,11 +248,9 @@ fn draw_legend(
         legend
             .draw(&Text::new(solver, (x + 28, y - 8), font.clone()))
             .map_err(|e| chart_err(&e))?;
-        x += 120;
     }
-    x += 20;
     let black = ShapeStyle::from(&BLACK).filled();
-    for (ni, &n) in ns.iter().enumerate() {
+    for (ni, (&n, &(x, y))) in ns.iter().zip(size_places).enumerate() {
         let c = (x + 6, y);
         let drawn = match ni % 4 {
             0 => legend.draw(&Circle::new(c, 4, black)),
@@ -240,7 +269,6 @@ fn draw_legend(
                 font.clone(),
             ))
             .map_err(|e| chart_err(&e))?;
-        x += 110;
     }
     Ok(())
 }

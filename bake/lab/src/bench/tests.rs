@@ -1,7 +1,7 @@
 //! The sweep's plan, the CSV's format and the chart's labels; the engine on real cases is tested
 //! in `otbake` (`bench::tests`) and end to end in `tests/tests/bench.rs`.
 
-use super::chart::{format_count, format_tick};
+use super::chart::{format_count, format_tick, legend_layout};
 use super::*;
 
 #[test]
@@ -66,4 +66,26 @@ fn tick_and_count_formats() {
     assert_eq!(format_tick(1e-5), "1e-5");
     assert_eq!(format_count(250_000), "250K");
     assert_eq!(format_count(1500), "1500");
+}
+
+#[test]
+fn the_legend_wraps_inside_the_chart_width() {
+    // Seven tools and two sizes: one line across three panels, wrapped within one panel (where
+    // the legend once ran off the image's right edge, hiding three tools' names).
+    let (wide, wide_height) = legend_layout(7, 2, 1560);
+    assert!(wide.iter().all(|&(_, y)| y == wide[0].1));
+    let (narrow, narrow_height) = legend_layout(7, 2, 520);
+    assert!(narrow_height >= 3 * wide_height, "{narrow:?}");
+    // Every entry starts at the left margin or after the one before it on its line, and ends
+    // inside the chart (a solver's entry is 120 px wide, a size's 110 px).
+    for (k, &(x, y)) in narrow.iter().enumerate() {
+        let width = if k < 7 { 120 } else { 110 };
+        assert!(x >= 16 && x + width <= 520 - 16, "entry {k} at {x}");
+        if k > 0 && narrow[k - 1].1 == y {
+            assert!(x >= narrow[k - 1].0 + 110);
+        }
+    }
+    assert_eq!(narrow.len(), 9);
+    // Nothing to show: one empty line.
+    assert_eq!(legend_layout(0, 0, 520), (Vec::new(), wide_height));
 }
