@@ -78,11 +78,11 @@ fn the_legend_wraps_inside_the_chart_width() {
     assert!(narrow_height >= 3 * wide_height, "{narrow:?}");
     // Every entry starts at the left margin or after the one before it on its line, and ends
     // inside the chart (a solver's entry is 120 px wide, a size's 110 px).
+    let width = |k: usize| if k < 7 { 120 } else { 110 };
     for (k, &(x, y)) in narrow.iter().enumerate() {
-        let width = if k < 7 { 120 } else { 110 };
-        assert!(x >= 16 && x + width <= 520 - 16, "entry {k} at {x}");
+        assert!(x >= 16 && x + width(k) <= 520 - 16, "entry {k} at {x}");
         if k > 0 && narrow[k - 1].1 == y {
-            assert!(x >= narrow[k - 1].0 + 110);
+            assert!(x >= narrow[k - 1].0 + width(k - 1), "entry {k} overlaps");
         }
     }
     assert_eq!(narrow.len(), 9);
