@@ -101,7 +101,7 @@ pub(super) struct Completed {
     /// Most edges held at once.
     pub edges: usize,
     /// Rows whose candidates the auction widened (each widening counted) and the columns those
-    /// lists held.
+    /// lists held: the auction's count (`auction::Matching`), since it decides what it keeps.
     pub widened: u64,
     pub wide_cols: usize,
     /// Rows whose own candidates a search certified further, with no list.
@@ -350,7 +350,7 @@ impl<'a, 'c, const D: usize> Beyond<'a, 'c, D> {
 
 impl<const D: usize> Outside for Beyond<'_, '_, D> {
     /// The row's columns within `margin`·2^round of its best over all columns (every widening
-    /// doubles the margin), as long as all wider lists together stay within `max_edges`.
+    /// doubles the margin), for at most [`MAX_WIDENINGS`] rounds.
     ///
     /// Most rows past what the kernel certifies are only where every price has fallen (bids only
     /// lower prices): their search finds nothing their own candidates lack, and only the
@@ -370,12 +370,12 @@ impl<const D: usize> Outside for Beyond<'_, '_, D> {
             self.done.certified += 1;
             return Some(Widened::Own(certified));
         }
-        if self.done.wide_cols + cols.len() > c.max_edges {
-            return None;
-        }
-        self.done.widened += 1;
-        self.done.wide_cols += cols.len();
         Some(Widened::List(cols, certified))
+    }
+
+    /// The lists may hold as many columns as the paths' edges.
+    fn wide_limit(&self) -> usize {
+        self.completion.max_edges
     }
 
     fn complete(&mut self, free: &[usize], x: &mut [u32], y: &mut [u32], v: &mut [f64]) {

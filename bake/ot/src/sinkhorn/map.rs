@@ -229,7 +229,7 @@ fn cycle_search(eps: f64) -> CycleSearch {
 /// and the 1M cow widen none, cayman 3.6% (D144).
 const CERTIFIED: f64 = 4.0;
 
-/// Columns the rows widened beyond the final kernel may hold in all, and edges the completion's
+/// Columns the rows widened beyond the final kernel may hold at once, and edges the completion's
 /// paths may hold at once, per point and per solve: 4 bytes each (and 28 per widened row), within
 /// what a kernel rebuild held at the solve's peak (24 bytes per pair, of which the auction keeps
 /// 8); cayman at 1M widened 36K rows with 243K columns, the 16M cow at `truncate = 4` reached
@@ -340,7 +340,9 @@ fn refine_assignment<const D: usize>(
         side * side * D as f64,
         &mut beyond,
     );
-    let completed = beyond.done;
+    let mut completed = beyond.done;
+    completed.widened = m.widened;
+    completed.wide_cols = m.wide_cols;
     // What ε-complementary slackness gave away locally, taken back by short cycles (D164).
     let tc = std::time::Instant::now();
     let cycles = if m.unassigned == 0 {
@@ -356,8 +358,9 @@ fn refine_assignment<const D: usize>(
     if std::env::var_os("OTBAKE_TRACE").is_some() {
         eprintln!(
             "  auction's costs {:.2}s, sorted {:.2}s, bounds {:.2}s\n  auction: {} phases, {} \
-             bids, {} rows certified further, {} widened ({} columns), {} searches {:.2}s; {} \
-             swaps, {} three-row cycles in {} passes {:.2}s",
+             bids, {} rows certified further, {} widened ({} columns, {} at once), {} searches \
+             {:.2}s; parked: {} at a stall, {} past the lists' limit, {} past the last \
+             widening; {} swaps, {} three-row cycles in {} passes {:.2}s",
             setup[0],
             setup[1],
             setup[2],
@@ -366,8 +369,12 @@ fn refine_assignment<const D: usize>(
             completed.certified,
             completed.widened,
             completed.wide_cols,
+            m.wide_held,
             completed.searches,
             completed.searching.as_secs_f64(),
+            m.parked.stalled,
+            m.parked.refused,
+            m.parked.unwidened,
             cycles.pairs,
             cycles.triples,
             cycles.passes,

@@ -103,8 +103,9 @@ impl Default for SinkhornSettings {
 /// whole build (D163). 14: short cycles after the auction, and its final ε by dimension, 1/2 in
 /// 2D (D164). 15: the final tolerance 1.5e-3 by default, earlier stages still at 3e-4 (D165).
 /// 16: the auction's prices start lowered away from the target's outline (D169).
-/// 17: θ = 6 by default in 2D (D171).
-const REVISION: u32 = 17;
+/// 17: θ = 6 by default in 2D (D171). 18: lists a widened row replaced no longer count against
+/// the lists' limit (D174; maps change only where that limit was reached, as the 16M cow's did).
+const REVISION: u32 = 18;
 
 impl SinkhornSettings {
     /// The truncation θ a solve in dimension `dim` uses: `truncate`, or the dimension's default.

@@ -155,10 +155,9 @@ fn past_the_edge_limit_rows_stay_free() {
 }
 
 /// The auction on a support with holes (each row keeps only its 3 nearest targets, so a peaked
-/// target leaves rows with too few columns between them) ends with the exact assignment's cost:
-/// the rows past what the support certifies are widened, and nothing is left unmatched.
-#[test]
-fn the_auction_beyond_a_support_with_holes_is_optimal() {
+/// target leaves rows with too few columns between them), its lists and edges limited to
+/// `max_edges`: the matching, its cost and the exact assignment's.
+fn auction_with_holes(max_edges: usize) -> (crate::auction::Matching, f64, f64) {
     use crate::auction::{auction, Graph};
     let c = case::<2>(400, true);
     let n = c.x.len();
@@ -180,27 +179,45 @@ fn the_auction_beyond_a_support_with_holes_is_optimal() {
         sorted: false,
         certified: 1e-4,
     };
-    let completion = c.completion(1e-4, usize::MAX);
+    let completion = c.completion(1e-4, max_edges);
     let mut beyond = Beyond::new(&completion, &f);
     let mut v = vec![0.0; n];
     let m = auction(&graph, &mut v, 1e-2, 1e-9, 4.0, 2.0, &mut beyond);
     assert_eq!(m.unassigned, 0, "{:?}", beyond.done);
-    assert!(
-        beyond.done.widened > 0,
-        "the holes were widened: {:?}",
-        beyond.done
-    );
     let mut ys = vec![NONE; n];
     for (i, &j) in m.x.iter().enumerate() {
         ys[j as usize] = i as u32;
     }
     assert_permutation(&m.x, &ys);
     let (got, want) = (total(&c, &m.x), exact_cost(&c));
+    (m, got, want)
+}
+
+/// The auction on a support with holes ends with the exact assignment's cost: the rows past what
+/// the support certifies are widened, and nothing is left unmatched.
+#[test]
+fn the_auction_beyond_a_support_with_holes_is_optimal() {
+    let (m, got, want) = auction_with_holes(usize::MAX);
+    assert!(m.widened > 0, "the holes were widened: {m:?}");
     // Within n·ε_end of the best, and the best is the exact assignment's.
     assert!(
-        got - want <= n as f64 * 1e-9 + 1e-12 * want,
+        got - want <= m.x.len() as f64 * 1e-9 + 1e-12 * want,
         "{got} vs exact {want}"
     );
+}
+
+/// Lists a row replaced do not count against the lists' limit: with a limit a little above the
+/// most columns the rows' newest lists held at once, well below what all the lists made held (a
+/// limit on those had parked rows), no row is parked for it, and the result is the same matching.
+#[test]
+fn replaced_lists_leave_room_for_later_rows() {
+    let (all, ..) = auction_with_holes(usize::MAX);
+    let limit = all.wide_held + all.wide_held / 8;
+    assert!(2 * all.wide_cols > 3 * limit, "{all:?}");
+    let (m, got, want) = auction_with_holes(limit);
+    assert_eq!(m.parked.refused, 0, "{m:?}");
+    assert_eq!(m.x, all.x);
+    assert!(got - want <= m.x.len() as f64 * 1e-9 + 1e-12 * want);
 }
 
 /// With the auction's support given (each row's 12 nearest targets, certified up to the nearest
