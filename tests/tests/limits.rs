@@ -1,6 +1,7 @@
 //! The memory budget: inputs, bakes and renders that would not fit are refused before they
 //! allocate, with the estimate, the budget and the fix — under a low `--memory` and under
-//! `ulimit -v`, always an error and exit status 1, never an abort or a signal, nothing written.
+//! `ulimit -v`, always an error and exit status 1, never an abort or a signal, nothing written
+//! (not even the output folder).
 
 use otbake_tests::{otbake_bin, scratch, shared_data, temp_files, write_manifest};
 use std::path::{Path, PathBuf};
@@ -170,6 +171,8 @@ fn sixteen_million_sinkhorn_samples_of_a_mesh_are_refused_before_any_work() {
     assert!(err.contains("8.0 GiB (from --memory)"), "{err}");
     refused(&dir, &["bake", "m.toml"], true, &expect);
     assert!(outputs(&dir).is_empty(), "{:?}", outputs(&dir));
+    // Not even the output folder or its store: a refused bake leaves the tree as it was.
+    assert!(!dir.join("out").exists(), "a refused bake created out/");
 }
 
 #[test]

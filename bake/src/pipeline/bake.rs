@@ -280,7 +280,11 @@ pub fn bake(m: &Manifest, opts: &BakeOptions<'_>) -> Result<BakeReport, BakeErro
     report.products.push(proxy_product);
     run.build_maps(maps, stale, proxy_data, &mut report)?;
     report.warnings.append(&mut run.warnings);
-    index.save()?;
+    // A bake that made and restored nothing (every product refused or failed) leaves nothing
+    // behind, not even the store folder the index would be written into.
+    if report.products.iter().any(|p| p.status != Status::Failed) {
+        index.save()?;
+    }
     Ok(report)
 }
 
